@@ -1,0 +1,178 @@
+//! Triangle: `triangle x1 y1 z1  x2 y2 z2  x3 y3 z3` then the material.
+//!
+//! The test is the watertight one of Woop, Benthin and Wald (2013), as in pbrt-v4:
+//! vertices are moved into a ray-aligned frame (translate, permute so the largest
+//! direction component is z, shear), and the three 2D edge functions decide
+//! inside/outside. Each edge function depends only on its own edge, so two triangles
+//! sharing an edge agree about it: no ray slips between them. Edge functions of exactly
+//! 0 count as inside, so a ray through a shared edge hits both (ties go to the first).
+
+use glam::DVec3;
+
+use super::{RefHit, SurfacePoint};
+use crate::math::Ray;
+use crate::math::float::gamma;
+use crate::scene::parse::is_degenerate_triangle;
+
+// ---------------------------------------------------------------- reference (f64)
+
+/// ab − cd with one rounding less (Kahan's difference of products, with FMA).
+fn difference_of_products(a: f64, b: f64, c: f64, d: f64) -> f64 {
+    let cd = c * d;
+    let err = (-c).mul_add(d, cd);
+    let dop = a.mul_add(b, -cd);
+    dop + err
+}
+
+/// Nearest hit with 0 < t < t_max, with barycentrics (b0, b1, b2) of the hit point.
+pub fn intersect_ref(v: &[DVec3; 3], ray: &Ray, t_max: f64) -> Option<RefHit> {
+    // degenerate triangles (zero area) are never hit
+    if is_degenerate_triangle(v) {
+        return None;
+    }
+    // translate the vertices to the ray origin
+    let mut p = v.map(|q| q - ray.origin);
+    // permute so that the largest direction component is z
+    let da = ray.dir.abs();
+    let kz = if da.x > da.y && da.x > da.z {
+        0
+    } else if da.y > da.z {
+        1
+    } else {
+        2
+    };
+    let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    let perm = |q: DVec3| DVec3::new(q[kx], q[ky], q[kz]);
+    let d = perm(ray.dir);
+    p = p.map(perm);
+    // shear so the ray runs along +z
+    let (sx, sy, sz) = (-d.x / d.z, -d.y / d.z, 1.0 / d.z);
+    for q in &mut p {
+        q.x += sx * q.z;
+        q.y += sy * q.z;
+    }
+    // edge functions
+    let e0 = difference_of_products(p[1].x, p[2].y, p[1].y, p[2].x);
+    let e1 = difference_of_products(p[2].x, p[0].y, p[2].y, p[0].x);
+    let e2 = difference_of_products(p[0].x, p[1].y, p[0].y, p[1].x);
+    // reject when the edge functions disagree in sign (zero counts as inside)
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None; // the ray lies in the triangle's plane
+    }
+    // scaled distance, compared without dividing
+    for q in &mut p {
+        q.z *= sz;
+    }
+    let t_scaled = e0 * p[0].z + e1 * p[1].z + e2 * p[2].z;
+    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+        return None;
+    }
+    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    // t must be positive beyond its own rounding error (pbrt-v4's bound)
+    let max_z = p.iter().map(|q| q.z.abs()).fold(0.0, f64::max);
+    let max_x = p.iter().map(|q| q.x.abs()).fold(0.0, f64::max);
+    let max_y = p.iter().map(|q| q.y.abs()).fold(0.0, f64::max);
+    let delta_z = gamma(3) * max_z;
+    let delta_x = gamma(5) * (max_x + max_z);
+    let delta_y = gamma(5) * (max_y + max_z);
+    let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t || t >= t_max {
+        return None;
+    }
+    Some(RefHit {
+        t,
+        bary: DVec3::new(e0, e1, e2) * inv_det,
+        part: 0,
+    })
+}
+
+/// Surface at a hit: the point from barycentrics (accurate even for grazing rays),
+/// the unit normal (b − a) × (c − a).
+pub fn surface_ref(v: &[DVec3; 3], hit: &RefHit) -> SurfacePoint {
+    let b = hit.bary;
+    let terms = [v[0] * b.x, v[1] * b.y, v[2] * b.z];
+    let point = terms[0] + terms[1] + terms[2];
+    let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * gamma(7);
+    let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+    SurfacePoint { point, normal, err }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRI: [DVec3; 3] = [
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+    ];
+
+    #[test]
+    fn hit_inside_gives_t_barycentrics_and_normal() {
+        let r = Ray::new(DVec3::new(0.25, 0.25, 2.0), DVec3::NEG_Z);
+        let h = intersect_ref(&TRI, &r, f64::INFINITY).unwrap();
+        assert!((h.t - 2.0).abs() < 1e-15);
+        let s = surface_ref(&TRI, &h);
+        assert!((s.point - DVec3::new(0.25, 0.25, 0.0)).length() < 1e-15);
+        assert_eq!(s.normal, DVec3::Z);
+        assert!((h.bary.x + h.bary.y + h.bary.z - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn miss_outside_and_behind() {
+        let r = Ray::new(DVec3::new(0.75, 0.75, 2.0), DVec3::NEG_Z);
+        assert!(intersect_ref(&TRI, &r, f64::INFINITY).is_none());
+        let r = Ray::new(DVec3::new(0.25, 0.25, 2.0), DVec3::Z);
+        assert!(intersect_ref(&TRI, &r, f64::INFINITY).is_none());
+    }
+
+    #[test]
+    fn shared_diagonal_of_a_quad_is_watertight() {
+        // Quad (0,0)-(1,1) split along the diagonal; rays along the diagonal hit one.
+        let a = [
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+        ];
+        let b = [
+            DVec3::ZERO,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
+        for i in 1..1000 {
+            let s = i as f64 / 1000.0 * std::f64::consts::PI / 3.0;
+            let p = DVec3::new(s, s, 0.0);
+            let o = p + DVec3::new(0.3, -0.2, 1.0);
+            let r = Ray::new(o, (p - o).normalize());
+            let hits = intersect_ref(&a, &r, f64::INFINITY).is_some() as u32
+                + intersect_ref(&b, &r, f64::INFINITY).is_some() as u32;
+            assert!(hits >= 1, "ray {i} slipped through the shared edge");
+        }
+    }
+
+    #[test]
+    fn degenerate_triangles_are_never_hit() {
+        let collinear = [DVec3::ZERO, DVec3::X, DVec3::X * 2.0];
+        let repeated = [DVec3::ZERO, DVec3::ZERO, DVec3::Y];
+        let r = Ray::new(DVec3::new(0.5, 0.0, 1.0), DVec3::NEG_Z);
+        assert!(intersect_ref(&collinear, &r, f64::INFINITY).is_none());
+        assert!(intersect_ref(&repeated, &r, f64::INFINITY).is_none());
+    }
+
+    #[test]
+    fn ray_in_the_plane_misses() {
+        let r = Ray::new(DVec3::new(-1.0, 0.2, 0.0), DVec3::X);
+        assert!(intersect_ref(&TRI, &r, f64::INFINITY).is_none());
+    }
+}

@@ -1,0 +1,13 @@
+//! octaray: a CPU ray tracer for the scenes of a classic graphics assignment
+//! (spheres, triangles, clipped quadrics, a checkerboard floor, point and spot lights,
+//! Phong shading, shadows and recursive reflection).
+//!
+//! Data flows one way: [`scene`] parses text into plain data, [`render`] turns a scene
+//! and a camera into a [`output::Framebuffer`], [`output`] writes it. See
+//! ARCHITECTURE.md.
+
+pub mod geometry;
+pub mod math;
+pub mod output;
+pub mod render;
+pub mod scene;

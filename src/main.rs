@@ -1,0 +1,194 @@
+//! The `octaray` command line: parses arguments, calls the library, maps errors to
+//! exit codes (2 for bad input, 1 for failures while writing).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use glam::DVec3;
+
+use octaray::output::{write_image, write_next_output};
+use octaray::render::{self, RenderSettings};
+use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
+use octaray::scene::{Camera, Scene};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "octaray",
+    version,
+    about = "A CPU ray tracer for the CSE410 scene format. With no command: render the built-in scene."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a scene file to BMP or PNG.
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug, Default)]
+struct RenderArgs {
+    /// Scene file; without it, the assignment's given scene built into the binary.
+    scene: Option<PathBuf>,
+    /// Output file (.bmp or .png, replaced atomically); default: the next free Output_1N.bmp.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Image side in pixels (default: the scene's `pixels`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_PIXELS))]
+    size: Option<u32>,
+    /// Eye position [default: 100,100,50].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<DVec3>,
+    /// Point to look at [default: look along (-1,-1,0)].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    look_at: Option<DVec3>,
+    /// Up hint [default: 0,0,1].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
+    fov: f64,
+    /// Render profile: `reference` (f64, one ray at a time, the oracle).
+    #[arg(long, default_value = "reference")]
+    profile: String,
+    /// Worker threads [default: one per core].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+}
+
+fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (out, p) in v.iter_mut().zip(&parts) {
+        *out = p
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number"))?;
+    }
+    Ok(DVec3::from(v))
+}
+
+fn parse_fov(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v < 180.0 => Ok(v),
+        _ => Err(format!(
+            "expected a field of view in (0, 180) degrees, got '{s}'"
+        )),
+    }
+}
+
+/// A failure and its exit code.
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+impl Failure {
+    fn input(message: impl Into<String>) -> Failure {
+        Failure {
+            code: 2,
+            message: message.into(),
+        }
+    }
+}
+
+fn load(path: Option<&Path>) -> Result<(Parsed, String), Failure> {
+    let (parsed, name) = match path {
+        Some(p) => (parse_scene_file(p), p.display().to_string()),
+        None => (
+            parse_scene(Scene::GIVEN, "<built-in given scene>"),
+            "<built-in given scene>".to_string(),
+        ),
+    };
+    let parsed = parsed.map_err(|e| Failure::input(e.to_string()))?;
+    for w in &parsed.warnings {
+        eprintln!("{w}");
+    }
+    Ok((parsed, name))
+}
+
+fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
+    let default = Camera::default();
+    let eye = args.eye.unwrap_or(default.eye);
+    let up = args.up.unwrap_or(default.up);
+    let camera = match args.look_at {
+        Some(target) => Camera::look_at(eye, target, up, args.fov),
+        None => Camera::from_look(eye, default.look, up, args.fov),
+    };
+    camera.ok_or_else(|| {
+        Failure::input("camera: the view direction is zero or parallel to the up vector")
+    })
+}
+
+fn run_render(args: &RenderArgs) -> Result<(), Failure> {
+    let (parsed, name) = load(args.scene.as_deref())?;
+    let scene = parsed.scene;
+    let size = args.size.unwrap_or(scene.pixels);
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        camera: camera(args)?,
+        threads: args.threads.map(|t| t as usize),
+        progress: true,
+    };
+    let rendered = match args.profile.as_str() {
+        "reference" => render::reference::render(&scene, &settings),
+        other => {
+            return Err(Failure::input(format!(
+                "--profile: unknown profile '{other}' (available: reference)"
+            )));
+        }
+    };
+    let written = match &args.output {
+        Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
+        None => write_next_output(&rendered.image, Path::new(".")),
+    }
+    .map_err(|e| Failure {
+        code: 1,
+        message: e.to_string(),
+    })?;
+    let s = &rendered.stats;
+    let secs = s.elapsed.as_secs_f64();
+    eprintln!(
+        "{name}: {size}x{size}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
+        args.profile,
+        args.threads.map_or_else(
+            || rayon::current_num_threads().to_string(),
+            |t| t.to_string()
+        ),
+        secs,
+        s.total_rays() as f64 / 1e6,
+        s.primary_rays,
+        s.shadow_rays,
+        s.reflection_rays,
+        s.total_rays() as f64 / 1e6 / secs.max(1e-9),
+        written.display()
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Render(args)) => run_render(&args),
+        None => run_render(&RenderArgs {
+            fov: 80.0,
+            profile: "reference".into(),
+            ..RenderArgs::default()
+        }),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("octaray: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}

@@ -1,0 +1,6 @@
+//! Rays and floating-point error bookkeeping shared by every path.
+
+pub mod float;
+pub mod ray;
+
+pub use ray::Ray;

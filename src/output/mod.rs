@@ -1,0 +1,9 @@
+//! The finished picture and how it reaches the disk.
+
+pub mod framebuffer;
+pub mod write;
+
+pub use framebuffer::Framebuffer;
+pub use write::{
+    OutputError, next_free_output, write_image, write_image_no_clobber, write_next_output,
+};

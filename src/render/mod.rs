@@ -1,0 +1,68 @@
+//! Renderers: they turn a [`Scene`] and a camera into a [`Framebuffer`] and know
+//! nothing of files or windows.
+//!
+//! - [`reference`]: f64, one ray at a time, every object tested. The oracle.
+//! - [`frame`]: splits a frame into bands of rows over rayon.
+
+pub mod frame;
+pub mod reference;
+
+use std::time::Duration;
+
+use crate::output::Framebuffer;
+use crate::scene::{Camera, Scene};
+
+/// What to render: image size, camera and threads.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub camera: Camera,
+    /// Worker threads; `None` uses rayon's default (one per core).
+    pub threads: Option<usize>,
+    /// Show a progress bar on stderr (only drawn when stderr is a terminal).
+    pub progress: bool,
+}
+
+impl RenderSettings {
+    /// The scene's own size and the default camera.
+    pub fn for_scene(scene: &Scene) -> RenderSettings {
+        RenderSettings {
+            width: scene.pixels,
+            height: scene.pixels,
+            camera: Camera::default(),
+            threads: None,
+            progress: false,
+        }
+    }
+}
+
+/// Counters of a finished frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RenderStats {
+    /// Camera rays.
+    pub primary_rays: u64,
+    /// Shadow rays (one per light that faces the hit and passes the spot cone).
+    pub shadow_rays: u64,
+    /// Mirror rays.
+    pub reflection_rays: u64,
+    pub elapsed: Duration,
+}
+
+impl RenderStats {
+    pub fn total_rays(&self) -> u64 {
+        self.primary_rays + self.shadow_rays + self.reflection_rays
+    }
+
+    pub fn add(&mut self, o: &RenderStats) {
+        self.primary_rays += o.primary_rays;
+        self.shadow_rays += o.shadow_rays;
+        self.reflection_rays += o.reflection_rays;
+    }
+}
+
+/// A finished frame and its counters.
+pub struct Rendered {
+    pub image: Framebuffer,
+    pub stats: RenderStats,
+}
