@@ -151,7 +151,7 @@ mod tests {
             DVec3::new(0.0, 1.0, 0.0),
         ];
         for i in 1..1000 {
-            let s = i as f64 / 1000.0 * std::f64::consts::PI / 3.0;
+            let s = (i as f64 * 0.618_033_988_749_894_9).fract();
             let p = DVec3::new(s, s, 0.0);
             let o = p + DVec3::new(0.3, -0.2, 1.0);
             let r = Ray::new(o, (p - o).normalize());
