@@ -8,7 +8,8 @@ use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
 use octaray::output::{write_image, write_next_output};
-use octaray::render::{self, RenderSettings};
+use octaray::render::RenderSettings;
+use octaray::render::profile::Profile;
 use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
 use octaray::scene::{Camera, Scene};
 
@@ -51,8 +52,8 @@ struct RenderArgs {
     /// Vertical field of view in degrees.
     #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
     fov: f64,
-    /// Render profile: `reference` (f64, one ray at a time, the oracle).
-    #[arg(long, default_value = "reference")]
+    /// Render profile (`reference`: f64, one ray at a time, the oracle).
+    #[arg(long, default_value = Profile::default_name())]
     profile: String,
     /// Worker threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -138,14 +139,14 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
-    let rendered = match args.profile.as_str() {
-        "reference" => render::reference::render(&scene, &settings),
-        other => {
-            return Err(Failure::input(format!(
-                "--profile: unknown profile '{other}' (available: reference)"
-            )));
-        }
-    };
+    let profile = Profile::by_name(&args.profile).ok_or_else(|| {
+        Failure::input(format!(
+            "--profile: unknown profile '{}' (available: {})",
+            args.profile,
+            Profile::NAMES.join(", ")
+        ))
+    })?;
+    let rendered = profile.render(&scene, &settings);
     let written = match &args.output {
         Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
         None => write_next_output(&rendered.image, Path::new(".")),
@@ -180,7 +181,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => run_render(&args),
         None => run_render(&RenderArgs {
             fov: 80.0,
-            profile: "reference".into(),
+            profile: Profile::default_name().into(),
             ..RenderArgs::default()
         }),
     };

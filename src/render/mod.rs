@@ -5,6 +5,7 @@
 //! - [`frame`]: splits a frame into bands of rows over rayon.
 
 pub mod frame;
+pub mod profile;
 pub mod reference;
 
 use std::time::Duration;
