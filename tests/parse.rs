@@ -1,0 +1,280 @@
+//! Scene-file parsing: every class of bad input is rejected with file:line:col and the
+//! field, and the valid variants of the format load.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes};
+use octaray::scene::{Scene, Shape};
+
+/// A small valid scene; tests corrupt one token of it at a time.
+const BASE: &str = "\
+2
+64
+2
+sphere
+0 0 10
+5
+1 0 0
+0.4 0.2 0.2 0.2
+10
+general
+1 1 1 0 0 0 0 0 0 -100
+0 0 0 0 0 20
+0 1 0
+0.4 0.2 0.1 0.3
+5
+1
+70 70 70
+1 1 1
+1
+100 100 200
+0 1 0
+0 0 -1
+12
+";
+
+fn err(text: &str) -> ParseError {
+    match parse_scene(text, "t.txt") {
+        Err(e) => e,
+        Ok(p) => panic!("accepted bad input:\n{text}\n{:?}", p.scene),
+    }
+}
+
+/// BASE with its 1-based line `line_no` replaced by `new`.
+fn with_line(line_no: usize, new: &str) -> String {
+    BASE.lines()
+        .enumerate()
+        .map(|(i, l)| if i + 1 == line_no { new } else { l })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn assert_err(text: &str, line: usize, col: usize, field: &str, msg_part: &str) {
+    let e = err(text);
+    assert_eq!((e.line, e.col), (line, col), "position of {e}");
+    assert_eq!(e.field, field, "field of {e}");
+    assert!(e.message.contains(msg_part), "message of {e}");
+    assert!(e.to_string().starts_with(&format!("t.txt:{line}:{col}: {field}: ")));
+}
+
+#[test]
+fn base_scene_is_valid() {
+    let p = parse_scene(BASE, "t.txt").unwrap();
+    assert_eq!(p.scene.objects.len(), 2);
+    assert_eq!(p.scene.spot_lights.len(), 1);
+    assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+}
+
+#[test]
+fn nan_inf_and_overflow_are_rejected() {
+    assert_err(&with_line(6, "nan"), 6, 1, "sphere 1: radius", "finite");
+    assert_err(&with_line(5, "0 inf 10"), 5, 3, "sphere 1: center.y", "finite");
+    assert_err(&with_line(5, "0 0 1e400"), 5, 5, "sphere 1: center.z", "finite");
+    assert_err(&with_line(18, "-Infinity 1 1"), 18, 1, "point light 1: color.r", "finite");
+}
+
+#[test]
+fn word_where_a_number_belongs() {
+    assert_err(&with_line(8, "0.4 0.2 abc 0.2"), 8, 9, "sphere 1: specular coefficient", "'abc'");
+}
+
+#[test]
+fn missing_number_is_caught_at_the_next_token() {
+    // The sphere loses its shine; the next token is the keyword `general`.
+    assert_err(&with_line(9, ""), 10, 1, "sphere 1: shine", "'general'");
+}
+
+#[test]
+fn missing_number_at_end_of_file() {
+    let text = BASE.trim_end().strip_suffix("12").unwrap();
+    let e = err(text);
+    assert_eq!(e.field, "spot light 1: cutoff angle");
+    assert!(e.message.contains("end of file"), "{e}");
+}
+
+#[test]
+fn extra_number_is_caught_where_a_keyword_belongs() {
+    assert_err(&with_line(9, "10 7"), 9, 4, "object 2: kind", "'7'");
+}
+
+#[test]
+fn unknown_object_kind() {
+    assert_err(&with_line(4, "cube"), 4, 1, "object 1: kind", "unknown object kind 'cube'");
+}
+
+#[test]
+fn non_positive_radius() {
+    assert_err(&with_line(6, "-5"), 6, 1, "sphere 1: radius", "must be > 0, got -5");
+    assert_err(&with_line(6, "0"), 6, 1, "sphere 1: radius", "must be > 0");
+}
+
+#[test]
+fn negative_clip_dimension() {
+    assert_err(&with_line(12, "0 0 0 0 -1 20"), 12, 9, "general 1: box width", ">= 0");
+}
+
+#[test]
+fn negative_colour_or_coefficient() {
+    assert_err(&with_line(7, "1 -0.5 0"), 7, 3, "sphere 1: color.g", ">= 0");
+    assert_err(&with_line(8, "0.4 -0.2 0.2 0.2"), 8, 5, "sphere 1: diffuse coefficient", ">= 0");
+}
+
+#[test]
+fn zero_spot_direction() {
+    assert_err(&with_line(22, "0 0 0"), 22, 1, "spot light 1: direction", "non-zero");
+}
+
+#[test]
+fn cutoff_outside_0_to_180() {
+    assert_err(&with_line(23, "181"), 23, 1, "spot light 1: cutoff angle", "0..=180");
+    assert_err(&with_line(23, "-1"), 23, 1, "spot light 1: cutoff angle", "0..=180");
+    for ok in ["0", "90", "180"] {
+        assert!(parse_scene(&with_line(23, ok), "t.txt").is_ok());
+    }
+}
+
+#[test]
+fn pixels_and_counts_must_be_integers_in_range() {
+    assert_err(&with_line(2, "0"), 2, 1, "pixels", "1..=");
+    assert_err(&with_line(2, "64.5"), 2, 1, "pixels", "integer");
+    assert_err(&with_line(2, "99999999999999999999999"), 2, 1, "pixels", "integer");
+    assert_err(&with_line(1, "-1"), 1, 1, "recursion_level", "0..=");
+    assert_err(&with_line(3, "two"), 3, 1, "n_objects", "'two'");
+}
+
+#[test]
+fn empty_and_whitespace_files() {
+    for text in ["", "   \n\n  // only a comment\n"] {
+        let e = err(text);
+        assert_eq!(e.field, "recursion_level");
+        assert!(e.message.contains("end of file"), "{e}");
+    }
+}
+
+#[test]
+fn binary_and_non_utf8_files() {
+    let e = parse_scene_bytes(b"2\n64\n\x00\x01\x02", "b.bin").unwrap_err();
+    assert_eq!((e.line, e.col), (3, 1));
+    assert!(e.message.contains("not a text scene file"), "{e}");
+    let e = parse_scene_bytes(b"2 \xff\xfe", "b.bin").unwrap_err();
+    assert_eq!((e.line, e.col), (1, 3));
+}
+
+#[test]
+fn given_scene_loads_with_its_trailing_prose() {
+    let text = std::fs::read_to_string(scene_path("given.txt")).unwrap();
+    let p = parse_scene(&text, "given.txt").unwrap();
+    let s = p.scene;
+    assert_eq!((s.recursion_level, s.pixels), (4, 768));
+    assert_eq!(s.objects.len(), 8);
+    assert_eq!(s.point_lights.len(), 4);
+    assert_eq!(s.spot_lights.len(), 1);
+    assert_eq!(s.spot_lights[0].cutoff_deg, 12.0);
+    assert_eq!(s, Scene::given());
+}
+
+#[test]
+fn file_without_spotlight_block_notes_it() {
+    let text = BASE.split("\n1\n100 100 200").next().unwrap();
+    let p = parse_scene(text, "t.txt").unwrap();
+    assert!(p.scene.spot_lights.is_empty());
+    assert!(p.warnings.iter().any(|w| w.contains("no spotlights")), "{:?}", p.warnings);
+    // A word after the point lights: no spotlights, the rest ignored.
+    let text = format!("{text}\nInput explanation 5 6 7");
+    let p = parse_scene(&text, "t.txt").unwrap();
+    assert!(p.scene.spot_lights.is_empty());
+    assert!(p.warnings.iter().any(|w| w.contains("'Input'")), "{:?}", p.warnings);
+}
+
+#[test]
+fn comments_case_and_layout_do_not_matter() {
+    let squashed = BASE.split_whitespace().collect::<Vec<_>>().join(" ");
+    let commented = BASE
+        .replace("sphere", "SpHeRe // a sphere, with a comment")
+        .replace("general\n", "GENERAL// glued comment\n");
+    let a = parse_scene(BASE, "a").unwrap().scene;
+    assert_eq!(parse_scene(&squashed, "b").unwrap().scene, a);
+    assert_eq!(parse_scene(&commented, "c").unwrap().scene, a);
+}
+
+#[test]
+fn degenerate_primitives_load_with_a_warning() {
+    let text = "1 8 2 triangle 0 0 0 1 1 1 2 2 2 1 0 0 0.4 0.2 0.2 0.2 5 \
+                general 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 1 0 0 0.4 0.2 0.2 0.2 5 0 0";
+    let p = parse_scene(text, "d.txt").unwrap();
+    assert_eq!(p.scene.objects.len(), 2);
+    assert!(p.warnings.iter().any(|w| w.contains("triangle 1 has zero area")));
+    assert!(p.warnings.iter().any(|w| w.contains("general 1 has all-zero")));
+}
+
+#[test]
+fn quadric_coefficients_are_normalised() {
+    let text = BASE.replace("1 1 1 0 0 0 0 0 0 -100", "1e20 1e20 1e20 0 0 0 0 0 0 -1e22");
+    let p = parse_scene(&text, "t.txt").unwrap();
+    let Shape::Quadric(q) = &p.scene.objects[1].shape else {
+        panic!("not a quadric")
+    };
+    assert_eq!(q.coef[9], -1.0);
+    assert!((q.coef[0] - 0.01).abs() < 1e-15);
+}
+
+#[test]
+fn prism_block_parses() {
+    let text = "2 8 1 prism 0 0 0 1 0 0 0 1 0  0 0 1 1 0 1 0 1 1 \
+                1 1 1 0.1 0.1 0.1 0.1 10 0.9 1.5046 0.0042 0 0";
+    let p = parse_scene(text, "p.txt").unwrap();
+    let Shape::Prism { glass, .. } = &p.scene.objects[0].shape else {
+        panic!("not a prism")
+    };
+    assert_eq!((glass.kt, glass.cauchy_a, glass.cauchy_b), (0.9, 1.5046, 0.0042));
+}
+
+fn scene_path(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+}
+
+#[test]
+fn every_committed_scene_parses() {
+    for entry in std::fs::read_dir(scene_path("")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "txt") {
+            let text = std::fs::read(&path).unwrap();
+            parse_scene_bytes(&text, &path.display().to_string())
+                .unwrap_or_else(|e| panic!("{e}"));
+        }
+    }
+}
+
+/// The binary: bad input exits 2 with file:line:col on stderr and writes nothing.
+#[test]
+fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
+    let dir = std::env::temp_dir().join(format!("octaray-cli-bad-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("bad.txt");
+    std::fs::write(&scene, with_line(6, "-5")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_octaray"))
+        .current_dir(&dir)
+        .args(["render", "bad.txt", "--size", "8"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("bad.txt:6:1: sphere 1: radius: must be > 0, got -5"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(files, vec![std::ffi::OsString::from("bad.txt")], "no output written");
+
+    // A missing file is bad input too.
+    let out = Command::new(env!("CARGO_BIN_EXE_octaray"))
+        .current_dir(&dir)
+        .args(["render", "nope.txt"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nope.txt"));
+}
