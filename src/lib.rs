@@ -6,6 +6,7 @@
 //! and a camera into a [`output::Framebuffer`], [`output`] writes it. See
 //! ARCHITECTURE.md.
 
+pub mod bvh;
 pub mod geometry;
 pub mod math;
 pub mod output;

@@ -2,9 +2,13 @@
 
 use glam::DVec3;
 
-use super::SurfacePoint;
+use glam::Vec3;
+use wide::f32x8;
+
+use super::{Surface32, SurfacePoint};
 use crate::math::Ray;
 use crate::math::float::gamma;
+use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, gamma32};
 use crate::scene::Floor;
 
 // ---------------------------------------------------------------- reference (f64)
@@ -33,6 +37,92 @@ pub fn surface_ref(ray: &Ray, t: f64) -> SurfacePoint {
         point: DVec3::new(p.x, p.y, 0.0),
         normal: DVec3::Z,
         err: DVec3::new(e.x, e.y, 0.0),
+    }
+}
+
+// ---------------------------------------------------------------- fast path (f32)
+
+/// The floor in the fast path's f32 frame: the plane z = `z`, x in [x0, x1], y in [y0, y1].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Floor32 {
+    pub z: f32,
+    pub x0: f32,
+    pub x1: f32,
+    pub y0: f32,
+    pub y1: f32,
+}
+
+impl Floor32 {
+    /// The scene's floor relative to `base`.
+    pub fn new(base: DVec3) -> Floor32 {
+        let h = Floor::HALF_WIDTH;
+        Floor32 {
+            z: (-base.z) as f32,
+            x0: (-h - base.x) as f32,
+            x1: (h - base.x) as f32,
+            y0: (-h - base.y) as f32,
+            y1: (h - base.y) as f32,
+        }
+    }
+
+    /// Nearest t with 0 < t <= t_max where the ray meets the finite floor.
+    #[inline]
+    pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<f32> {
+        // rays parallel to the plane never hit it (this also keeps 0/0 out)
+        if r.dir.z == 0.0 {
+            return None;
+        }
+        // distance to the plane
+        let t = (self.z - r.origin.z) / r.dir.z;
+        if !(t > 0.0 && t <= t_max) {
+            return None;
+        }
+        // reject points outside the square
+        let p = r.at(t);
+        (p.x >= self.x0 && p.x <= self.x1 && p.y >= self.y0 && p.y <= self.y1).then_some(t)
+    }
+
+    #[inline]
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32) -> bool {
+        self.intersect_1(r, t_max).is_some_and(|t| t < t_max)
+    }
+
+    /// Packet twin of [`Floor32::intersect_1`].
+    #[inline]
+    pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> (Mask8, f32x8) {
+        // rays parallel to the plane never hit it (this also keeps 0/0 out)
+        let valid = active & !r.dir.z.eq8(f32x8::ZERO);
+        // distance to the plane
+        let t = (f32x8::splat(self.z) - r.origin.z) / r.dir.z;
+        let valid = valid & t.gt(f32x8::ZERO) & t.le(t_max);
+        if valid.none() {
+            return (valid, t);
+        }
+        // reject points outside the square
+        let x = r.origin.x + r.dir.x * t;
+        let y = r.origin.y + r.dir.y * t;
+        let inside = x.ge(f32x8::splat(self.x0))
+            & x.le(f32x8::splat(self.x1))
+            & y.ge(f32x8::splat(self.y0))
+            & y.le(f32x8::splat(self.y1));
+        (valid & inside, t)
+    }
+
+    #[inline]
+    pub fn occluded_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        let (m, t) = self.intersect_x8(r, active, t_max);
+        m & t.lt(t_max)
+    }
+
+    /// Surface at distance t; z is set exactly to the plane, so only x and y carry error.
+    pub fn surface_1(&self, r: &Ray1, t: f32) -> Surface32 {
+        let p = r.at(t);
+        let e = (r.origin.abs() + (r.dir * t).abs()) * gamma32(3);
+        Surface32 {
+            point: Vec3::new(p.x, p.y, self.z),
+            normal: Vec3::Z,
+            err: Vec3::new(e.x, e.y, 0.0),
+        }
     }
 }
 

@@ -15,10 +15,14 @@ pub mod quadric;
 pub mod sphere;
 pub mod triangle;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
+use wide::{f32x8, i32x8};
 
+use crate::bvh::Aabb;
 use crate::math::Ray;
-use crate::scene::Shape;
+use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8};
+use crate::scene::parse::is_degenerate_triangle;
+use crate::scene::{Scene, Shape};
 
 /// What a reference kernel reports for a hit: the distance, for triangles the
 /// barycentric coordinates (b0, b1, b2) of the hit point, and for compound shapes
@@ -65,6 +69,12 @@ pub fn intersect_ref(shape: &Shape, ray: &Ray, t_max: f64) -> Option<RefHit> {
                 triangle::intersect_ref(f, ray, t_max).map(|h| RefHit { part, ..h })
             })
             .min_by(|a, b| a.t.total_cmp(&b.t)),
+        // brute force, like every other object of the reference
+        Shape::Mesh(m) => (0..m.triangles.len())
+            .filter_map(|part| {
+                triangle::intersect_ref(&m.triangle(part), ray, t_max).map(|h| RefHit { part, ..h })
+            })
+            .min_by(|a, b| a.t.total_cmp(&b.t)),
     }
 }
 
@@ -75,6 +85,7 @@ pub fn surface_ref(shape: &Shape, ray: &Ray, hit: &RefHit) -> SurfacePoint {
         Shape::Triangle { v } => triangle::surface_ref(v, hit),
         Shape::Quadric(q) => quadric::surface_ref(q, ray, hit.t),
         Shape::Prism { v, .. } => triangle::surface_ref(&prism_faces(v)[hit.part], hit),
+        Shape::Mesh(m) => triangle::surface_ref(&m.triangle(hit.part), hit),
     }
 }
 
@@ -101,4 +112,391 @@ pub fn prism_faces(v: &[DVec3; 6]) -> [[DVec3; 3]; 8] {
         }
     }
     faces
+}
+
+// ---------------------------------------------------------------- fast path (f32)
+
+/// The surface at the winning hit of the fast path, in its f32 frame: point, unit
+/// geometric normal (not yet flipped), per-component error bound of `point`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface32 {
+    pub point: Vec3,
+    pub normal: Vec3,
+    pub err: Vec3,
+}
+
+/// Primitive kinds of the fast path. A BVH leaf holds one kind, so it runs one kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrimKind {
+    Sphere = 0,
+    Triangle = 1,
+    /// A quadric clipped on every axis (finite box): lives in the BVH.
+    Quadric = 2,
+    /// A quadric unclipped on some axis: tested beside the BVH.
+    FreeQuadric = 3,
+    /// The floor: tested beside the BVH, after everything else.
+    Floor = 4,
+}
+
+impl PrimKind {
+    pub const BVH_KINDS: [PrimKind; 3] = [PrimKind::Sphere, PrimKind::Triangle, PrimKind::Quadric];
+
+    pub fn from_u32(k: u32) -> PrimKind {
+        match k {
+            0 => PrimKind::Sphere,
+            1 => PrimKind::Triangle,
+            2 => PrimKind::Quadric,
+            3 => PrimKind::FreeQuadric,
+            _ => PrimKind::Floor,
+        }
+    }
+}
+
+/// Bits of a primitive code below the kind: code = kind << 28 | index (always >= 0;
+/// −1 in a hit means no hit).
+pub const INDEX_BITS: u32 = 28;
+
+/// The code a hit records for primitive `index` of `kind`.
+#[inline]
+pub fn prim_code(kind: PrimKind, index: usize) -> i32 {
+    ((kind as u32) << INDEX_BITS | index as u32) as i32
+}
+
+/// Splits a primitive code into kind and index.
+#[inline]
+pub fn split_code(code: i32) -> (PrimKind, usize) {
+    let c = code as u32;
+    (
+        PrimKind::from_u32(c >> INDEX_BITS),
+        (c & ((1 << INDEX_BITS) - 1)) as usize,
+    )
+}
+
+/// A hit of the single-ray path: distance, primitive code (−1: none), barycentrics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit1 {
+    pub t: f32,
+    pub prim: i32,
+    pub u: f32,
+    pub v: f32,
+}
+
+impl Hit1 {
+    pub fn new(t_max: f32) -> Hit1 {
+        Hit1 {
+            t: t_max,
+            prim: -1,
+            u: 0.0,
+            v: 0.0,
+        }
+    }
+    pub fn is_hit(&self) -> bool {
+        self.prim >= 0
+    }
+}
+
+/// Every primitive of the fast path, by kind, in one f32 frame (coordinates relative
+/// to a base point, e.g. the camera, so far-away scenes keep their precision), with
+/// the scene object each came from (ties in t go to the lower object index; the
+/// floor loses every tie). After a BVH build the BVH kinds are in leaf order.
+#[derive(Clone, Debug, Default)]
+pub struct PrimSet {
+    pub spheres: Vec<sphere::Sphere32>,
+    pub sphere_obj: Vec<u32>,
+    pub triangles: Vec<triangle::Triangle32>,
+    pub triangle_obj: Vec<u32>,
+    pub quadrics: Vec<quadric::Quadric32>,
+    pub quadric_obj: Vec<u32>,
+    pub free_quadrics: Vec<quadric::Quadric32>,
+    pub free_quadric_obj: Vec<u32>,
+    pub floor: Option<floor::Floor32>,
+    /// Number of degenerate triangles and all-zero quadrics dropped (never hit).
+    pub dropped: usize,
+}
+
+impl PrimSet {
+    /// The primitives of `scene` relative to `base`, the floor included. Degenerate
+    /// triangles and all-zero quadrics are dropped (the reference never hits them either).
+    pub fn from_scene(scene: &Scene, base: DVec3) -> PrimSet {
+        let mut s = PrimSet {
+            floor: Some(floor::Floor32::new(base)),
+            ..PrimSet::default()
+        };
+        for (i, o) in scene.objects.iter().enumerate() {
+            let id = i as u32;
+            match &o.shape {
+                Shape::Sphere { center, radius } => {
+                    s.spheres
+                        .push(sphere::Sphere32::new(*center, *radius, base));
+                    s.sphere_obj.push(id);
+                }
+                Shape::Triangle { v } => s.push_triangle(v, base, id),
+                Shape::Quadric(q) => {
+                    if q.is_degenerate() {
+                        s.dropped += 1;
+                        continue;
+                    }
+                    let q32 = quadric::Quadric32::new(q, base);
+                    if q32.bounds().is_some() {
+                        s.quadrics.push(q32);
+                        s.quadric_obj.push(id);
+                    } else {
+                        s.free_quadrics.push(q32);
+                        s.free_quadric_obj.push(id);
+                    }
+                }
+                Shape::Prism { v, .. } => {
+                    for f in prism_faces(v) {
+                        s.push_triangle(&f, base, id);
+                    }
+                }
+                Shape::Mesh(m) => {
+                    s.triangles.reserve(m.triangles.len());
+                    s.triangle_obj.reserve(m.triangles.len());
+                    for k in 0..m.triangles.len() {
+                        s.push_triangle(&m.triangle(k), base, id);
+                    }
+                }
+            }
+        }
+        s
+    }
+
+    fn push_triangle(&mut self, v: &[DVec3; 3], base: DVec3, id: u32) {
+        let t = triangle::Triangle32::new(v, base);
+        let v32 = t.v.map(|p| p.as_dvec3());
+        if is_degenerate_triangle(v) || is_degenerate_triangle(&v32) {
+            self.dropped += 1;
+            return;
+        }
+        self.triangles.push(t);
+        self.triangle_obj.push(id);
+    }
+
+    /// A triangle mesh on its own (object 0), no floor: the benchmark's input.
+    pub fn from_triangles(tris: Vec<triangle::Triangle32>) -> PrimSet {
+        let n = tris.len();
+        PrimSet {
+            triangles: tris,
+            triangle_obj: vec![0; n],
+            ..PrimSet::default()
+        }
+    }
+
+    /// Number of primitives of a BVH kind.
+    pub fn len(&self, kind: PrimKind) -> usize {
+        match kind {
+            PrimKind::Sphere => self.spheres.len(),
+            PrimKind::Triangle => self.triangles.len(),
+            PrimKind::Quadric => self.quadrics.len(),
+            PrimKind::FreeQuadric => self.free_quadrics.len(),
+            PrimKind::Floor => self.floor.is_some() as usize,
+        }
+    }
+
+    /// Bounds of a BVH primitive.
+    pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
+        match kind {
+            PrimKind::Sphere => self.spheres[i].bounds(),
+            PrimKind::Triangle => self.triangles[i].bounds(),
+            PrimKind::Quadric => self.quadrics[i].bounds().expect("bounded quadric"),
+            PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
+        }
+    }
+
+    /// The scene object of a primitive code (the floor: u32::MAX, it loses every tie).
+    pub fn object(&self, code: i32) -> u32 {
+        let (kind, i) = split_code(code);
+        match kind {
+            PrimKind::Sphere => self.sphere_obj[i],
+            PrimKind::Triangle => self.triangle_obj[i],
+            PrimKind::Quadric => self.quadric_obj[i],
+            PrimKind::FreeQuadric => self.free_quadric_obj[i],
+            PrimKind::Floor => u32::MAX,
+        }
+    }
+
+    /// Records a packet kernel's hits (lanes `m` at `t`) of primitive `code` in `hit`:
+    /// nearer wins; an exact tie goes to the lower object index.
+    #[inline]
+    fn record_x8(&self, hit: &mut HitPacket8, m: Mask8, t: f32x8, uv: (f32x8, f32x8), code: i32) {
+        let mut closer = m & t.lt(hit.t);
+        let tie = m & t.eq8(hit.t) & hit.hit_mask();
+        if tie.any() {
+            let obj = self.object(code);
+            let mut extra = 0;
+            for lane in 0..8 {
+                if tie.lane(lane) && obj < self.object(hit.prim_lane(lane)) {
+                    extra |= 1 << lane;
+                }
+            }
+            closer = closer | Mask8::from_bits(extra);
+        }
+        if closer.none() {
+            return;
+        }
+        hit.t = closer.select(t, hit.t);
+        hit.prim = closer.select_i32(i32x8::splat(code), hit.prim);
+        hit.u = closer.select(uv.0, hit.u);
+        hit.v = closer.select(uv.1, hit.v);
+    }
+
+    #[inline]
+    fn record_1(&self, hit: &mut Hit1, t: f32, u: f32, v: f32, code: i32) {
+        if t < hit.t || (t == hit.t && hit.is_hit() && self.object(code) < self.object(hit.prim)) {
+            *hit = Hit1 {
+                t,
+                prim: code,
+                u,
+                v,
+            };
+        }
+    }
+
+    /// Closest-hit test of primitives `first..first + count` of one kind (a BVH leaf,
+    /// or the list beside it) against the active lanes of a packet.
+    #[inline]
+    pub fn intersect_x8(
+        &self,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        r: &RayPacket8,
+        active: Mask8,
+        hit: &mut HitPacket8,
+    ) {
+        let zero = (f32x8::ZERO, f32x8::ZERO);
+        for i in first..first + count {
+            let code = prim_code(kind, i);
+            match kind {
+                PrimKind::Sphere => {
+                    let (m, t) = self.spheres[i].intersect_x8(r, active, hit.t);
+                    self.record_x8(hit, m, t, zero, code);
+                }
+                PrimKind::Triangle => {
+                    let (m, t, u, v) = self.triangles[i].intersect_x8(r, active, hit.t);
+                    self.record_x8(hit, m, t, (u, v), code);
+                }
+                PrimKind::Quadric => {
+                    let (m, t) = self.quadrics[i].intersect_x8(r, active, hit.t);
+                    self.record_x8(hit, m, t, zero, code);
+                }
+                PrimKind::FreeQuadric => {
+                    let (m, t) = self.free_quadrics[i].intersect_x8(r, active, hit.t);
+                    self.record_x8(hit, m, t, zero, code);
+                }
+                PrimKind::Floor => {
+                    if let Some(f) = &self.floor {
+                        let (m, t) = f.intersect_x8(r, active, hit.t);
+                        self.record_x8(hit, m, t, zero, code);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Any-hit test: the lanes of `active` blocked by one of the primitives with
+    /// 0 < t < t_max. Stops as soon as every active lane is blocked.
+    #[inline]
+    pub fn occluded_x8(
+        &self,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+    ) -> Mask8 {
+        let mut left = active;
+        for i in first..first + count {
+            let m = match kind {
+                PrimKind::Sphere => self.spheres[i].occluded_x8(r, left, t_max),
+                PrimKind::Triangle => self.triangles[i].occluded_x8(r, left, t_max),
+                PrimKind::Quadric => self.quadrics[i].occluded_x8(r, left, t_max),
+                PrimKind::FreeQuadric => self.free_quadrics[i].occluded_x8(r, left, t_max),
+                PrimKind::Floor => match &self.floor {
+                    Some(f) => f.occluded_x8(r, left, t_max),
+                    None => Mask8::NONE,
+                },
+            };
+            left = left.and_not(m);
+            if left.none() {
+                break;
+            }
+        }
+        active.and_not(left)
+    }
+
+    /// Single-ray twin of [`PrimSet::intersect_x8`].
+    #[inline]
+    pub fn intersect_1(
+        &self,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        r: &Ray1,
+        hit: &mut Hit1,
+    ) {
+        for i in first..first + count {
+            let code = prim_code(kind, i);
+            match kind {
+                PrimKind::Sphere => {
+                    if let Some(t) = self.spheres[i].intersect_1(r, hit.t) {
+                        self.record_1(hit, t, 0.0, 0.0, code);
+                    }
+                }
+                PrimKind::Triangle => {
+                    if let Some((t, u, v)) = self.triangles[i].intersect_1(r, hit.t) {
+                        self.record_1(hit, t, u, v, code);
+                    }
+                }
+                PrimKind::Quadric => {
+                    if let Some(t) = self.quadrics[i].intersect_1(r, hit.t) {
+                        self.record_1(hit, t, 0.0, 0.0, code);
+                    }
+                }
+                PrimKind::FreeQuadric => {
+                    if let Some(t) = self.free_quadrics[i].intersect_1(r, hit.t) {
+                        self.record_1(hit, t, 0.0, 0.0, code);
+                    }
+                }
+                PrimKind::Floor => {
+                    if let Some(t) = self.floor.and_then(|f| f.intersect_1(r, hit.t)) {
+                        self.record_1(hit, t, 0.0, 0.0, code);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Single-ray twin of [`PrimSet::occluded_x8`].
+    #[inline]
+    pub fn occluded_1(
+        &self,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        r: &Ray1,
+        t_max: f32,
+    ) -> bool {
+        (first..first + count).any(|i| match kind {
+            PrimKind::Sphere => self.spheres[i].occluded_1(r, t_max),
+            PrimKind::Triangle => self.triangles[i].occluded_1(r, t_max),
+            PrimKind::Quadric => self.quadrics[i].occluded_1(r, t_max),
+            PrimKind::FreeQuadric => self.free_quadrics[i].occluded_1(r, t_max),
+            PrimKind::Floor => self.floor.is_some_and(|f| f.occluded_1(r, t_max)),
+        })
+    }
+
+    /// Surface record of a hit, computed once for the winner.
+    pub fn surface_1(&self, code: i32, r: &Ray1, t: f32, u: f32, v: f32) -> Surface32 {
+        let (kind, i) = split_code(code);
+        match kind {
+            PrimKind::Sphere => self.spheres[i].surface_1(r, t),
+            PrimKind::Triangle => self.triangles[i].surface_1(u, v),
+            PrimKind::Quadric => self.quadrics[i].surface_1(r, t),
+            PrimKind::FreeQuadric => self.free_quadrics[i].surface_1(r, t),
+            PrimKind::Floor => self.floor.expect("floor hit").surface_1(r, t),
+        }
+    }
 }

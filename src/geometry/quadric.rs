@@ -13,9 +13,14 @@
 
 use glam::DVec3;
 
-use super::SurfacePoint;
+use glam::Vec3;
+use wide::f32x8;
+
+use super::{Surface32, SurfacePoint};
+use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
+use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
 use crate::scene::Quadric;
 
 // ---------------------------------------------------------------- reference (f64)
@@ -100,6 +105,237 @@ pub fn surface_ref(q: &Quadric, ray: &Ray, t: f64) -> SurfacePoint {
     };
     let err = DVec3::splat(dist) + point.abs() * gamma(1);
     SurfacePoint { point, normal, err }
+}
+
+// ---------------------------------------------------------------- fast path (f32)
+
+/// A quadric in the fast path's f32 frame: coefficients of F(x + base), renormalised
+/// by their largest magnitude, and the clipping box (±∞ on unclipped axes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quadric32 {
+    pub coef: [f32; 10],
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Quadric32 {
+    /// From scene data, translated so that `base` is the origin (in f64, then rounded).
+    pub fn new(q: &Quadric, base: DVec3) -> Quadric32 {
+        let [a, b, c, d, e, f, _, _, _, _] = q.coef;
+        // F(x + base): same quadratic part, linear part ∇F(base), constant F(base)
+        let g = q.gradient(base);
+        let mut k = [a, b, c, d, e, f, g.x, g.y, g.z, q.value(base)];
+        let scale = k.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if scale > 0.0 {
+            k.iter_mut().for_each(|v| *v /= scale);
+        }
+        let axis = |i: usize| {
+            if q.size[i] == 0.0 {
+                (f32::NEG_INFINITY, f32::INFINITY)
+            } else {
+                (
+                    f32_down(q.min[i] - base[i]),
+                    f32_up(q.min[i] + q.size[i] - base[i]),
+                )
+            }
+        };
+        let (x, y, z) = (axis(0), axis(1), axis(2));
+        Quadric32 {
+            coef: k.map(|v| v as f32),
+            lo: Vec3::new(x.0, y.0, z.0),
+            hi: Vec3::new(x.1, y.1, z.1),
+        }
+    }
+
+    /// The clipping box when every axis is clipped.
+    pub fn bounds(&self) -> Option<Aabb> {
+        (self.lo.is_finite() && self.hi.is_finite()).then(|| Aabb::new(self.lo, self.hi))
+    }
+
+    fn value(&self, p: Vec3) -> f32 {
+        let [a, b, c, d, e, f, g, h, i, j] = self.coef;
+        a * p.x * p.x
+            + b * p.y * p.y
+            + c * p.z * p.z
+            + d * p.x * p.y
+            + e * p.x * p.z
+            + f * p.y * p.z
+            + g * p.x
+            + h * p.y
+            + i * p.z
+            + j
+    }
+
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        let [a, b, c, d, e, f, g, h, i, _] = self.coef;
+        Vec3::new(
+            2.0 * a * p.x + d * p.y + e * p.z + g,
+            2.0 * b * p.y + d * p.x + f * p.z + h,
+            2.0 * c * p.z + e * p.x + f * p.y + i,
+        )
+    }
+
+    fn in_box(&self, p: Vec3) -> bool {
+        p.cmpge(self.lo).all() && p.cmple(self.hi).all()
+    }
+
+    /// Nearest t with 0 < t <= t_max (inclusive: the caller breaks ties) under the
+    /// box-clipping root rule.
+    #[inline]
+    pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<f32> {
+        // (the all-zero quadric is dropped when the primitives are built)
+        // coefficients of F along the ray
+        let [qa, qb, qc, qd, qe, qf, ..] = self.coef;
+        let d = r.dir;
+        let a = qa * d.x * d.x
+            + qb * d.y * d.y
+            + qc * d.z * d.z
+            + qd * d.x * d.y
+            + qe * d.x * d.z
+            + qf * d.y * d.z;
+        let b = self.gradient(r.origin).dot(d);
+        let c = self.value(r.origin);
+        // solve for both roots
+        let (t0, t1) = if a == 0.0 {
+            if b == 0.0 {
+                return None;
+            }
+            let t = -c / b;
+            (t, t)
+        } else {
+            let disc = b * b - 4.0 * a * c;
+            if disc.is_nan() || disc < 0.0 {
+                return None;
+            }
+            let q = -0.5 * (b + disc.sqrt().copysign(b));
+            if q == 0.0 {
+                (0.0, 0.0)
+            } else {
+                let (r0, r1) = (q / a, c / q);
+                (r0.min(r1), r0.max(r1))
+            }
+        };
+        // nearer positive root in the box, else the farther one
+        [t0, t1]
+            .into_iter()
+            .find(|&t| t > 0.0 && t <= t_max && self.in_box(r.at(t)))
+    }
+
+    /// Whether the quadric meets the ray with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32) -> bool {
+        self.intersect_1(r, t_max).is_some_and(|t| t < t_max)
+    }
+
+    /// Packet twin of [`Quadric32::intersect_1`].
+    #[inline]
+    pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> (Mask8, f32x8) {
+        let k = self.coef.map(f32x8::splat);
+        let zero = f32x8::ZERO;
+        let two = f32x8::splat(2.0);
+        // coefficients of F along the ray
+        let (d, o) = (r.dir, r.origin);
+        let a = k[0] * d.x * d.x
+            + k[1] * d.y * d.y
+            + k[2] * d.z * d.z
+            + k[3] * d.x * d.y
+            + k[4] * d.x * d.z
+            + k[5] * d.y * d.z;
+        let grad = Vec3x8::new(
+            two * k[0] * o.x + k[3] * o.y + k[4] * o.z + k[6],
+            two * k[1] * o.y + k[3] * o.x + k[5] * o.z + k[7],
+            two * k[2] * o.z + k[4] * o.x + k[5] * o.y + k[8],
+        );
+        let b = grad.dot(d);
+        let c = k[0] * o.x * o.x
+            + k[1] * o.y * o.y
+            + k[2] * o.z * o.z
+            + k[3] * o.x * o.y
+            + k[4] * o.x * o.z
+            + k[5] * o.y * o.z
+            + k[6] * o.x
+            + k[7] * o.y
+            + k[8] * o.z
+            + k[9];
+        // solve for both roots
+        let linear = a.eq8(zero);
+        let disc = b * b - f32x8::splat(4.0) * a * c;
+        let valid = active & ((linear & !b.eq8(zero)) | (!linear & disc.ge(zero)));
+        if valid.none() {
+            return (valid, zero);
+        }
+        let q = f32x8::splat(-0.5) * (b + (disc.sqrt() | (b & f32x8::splat(-0.0))));
+        let r0 = q / a;
+        let r1 = c / q;
+        let q0 = q.eq8(zero);
+        let t0 = q0.select(zero, r0.min(r1));
+        let t1 = q0.select(zero, r0.max(r1));
+        let tl = -c / b;
+        let t0 = linear.select(tl, t0);
+        let t1 = linear.select(tl, t1);
+        // nearer positive root in the box, else the farther one
+        let in_box = |t: f32x8| {
+            let p = Vec3x8::new(o.x + d.x * t, o.y + d.y * t, o.z + d.z * t);
+            p.x.ge(f32x8::splat(self.lo.x))
+                & p.y.ge(f32x8::splat(self.lo.y))
+                & p.z.ge(f32x8::splat(self.lo.z))
+                & p.x.le(f32x8::splat(self.hi.x))
+                & p.y.le(f32x8::splat(self.hi.y))
+                & p.z.le(f32x8::splat(self.hi.z))
+        };
+        let ok0 = valid & t0.gt(zero) & t0.le(t_max) & in_box(t0);
+        let ok1 = valid & t1.gt(zero) & t1.le(t_max) & in_box(t1);
+        (ok0 | ok1, ok0.select(t0, t1))
+    }
+
+    /// Lanes of `active` whose ray meets the quadric with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        // an any-hit query must still apply the root rule: both roots below t_max
+        let (m, t) = self.intersect_x8(r, active, t_max);
+        m & t.lt(t_max)
+    }
+
+    /// Surface at distance t; the error bound as in the reference, in f32.
+    pub fn surface_1(&self, r: &Ray1, t: f32) -> Surface32 {
+        let point = r.at(t);
+        let grad = self.gradient(point);
+        let glen = grad.length();
+        let ok = glen > 0.0 && glen.is_finite();
+        let normal = if ok { grad / glen } else { -r.dir };
+        let [a, b, c, d, e, f, g, h, i, j] = self.coef;
+        let (x, y, z) = (point.x, point.y, point.z);
+        let magnitude = (a * x * x).abs()
+            + (b * y * y).abs()
+            + (c * z * z).abs()
+            + (d * x * y).abs()
+            + (e * x * z).abs()
+            + (f * y * z).abs()
+            + (g * x).abs()
+            + (h * y).abs()
+            + (i * z).abs()
+            + j.abs();
+        let dist = if ok {
+            2.0 * (self.value(point).abs() + gamma32(12) * magnitude) / glen
+        } else {
+            gamma32(16) * point.abs().max_element()
+        };
+        // the hit point o + t·d itself is off by about one rounding per component
+        let err = Vec3::splat(dist) + (point.abs() + (r.dir * t).abs()) * gamma32(3);
+        Surface32 { point, normal, err }
+    }
+}
+
+/// The largest f32 not above x.
+pub fn f32_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x { f.next_down() } else { f }
+}
+
+/// The smallest f32 not below x.
+pub fn f32_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x { f.next_up() } else { f }
 }
 
 #[cfg(test)]

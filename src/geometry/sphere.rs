@@ -6,9 +6,14 @@
 
 use glam::DVec3;
 
-use super::SurfacePoint;
+use glam::Vec3;
+use wide::f32x8;
+
+use super::{Surface32, SurfacePoint};
+use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
+use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
 
 // ---------------------------------------------------------------- reference (f64)
 
@@ -49,6 +54,114 @@ pub fn surface_ref(center: DVec3, radius: f64, ray: &Ray, t: f64) -> SurfacePoin
     // again relative to |point|.
     let err = (v.abs() + center.abs()) * gamma(6);
     SurfacePoint { point, normal, err }
+}
+
+// ---------------------------------------------------------------- fast path (f32)
+
+/// A sphere in the fast path's f32 frame (coordinates relative to the frame origin).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere32 {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+impl Sphere32 {
+    /// From scene data, relative to `base`.
+    pub fn new(center: DVec3, radius: f64, base: DVec3) -> Sphere32 {
+        Sphere32 {
+            center: (center - base).as_vec3(),
+            radius: radius as f32,
+        }
+    }
+
+    /// Bounds, padded by a relative 4 ulp so f32 rounding cannot shrink them.
+    pub fn bounds(&self) -> Aabb {
+        let pad =
+            Vec3::splat(self.radius) + (self.center.abs() + self.radius) * (4.0 * f32::EPSILON);
+        Aabb::new(self.center - pad, self.center + pad)
+    }
+
+    /// Nearest t with 0 < t <= t_max (inclusive: the caller breaks exact ties).
+    #[inline]
+    pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<f32> {
+        // vector from the centre to the origin
+        let f = r.origin - self.center;
+        // project it onto the ray: b = f·d (d is unit)
+        let b = f.dot(r.dir);
+        // discriminant as r² − |f − b·d|², factored to keep the subtraction exact-ish
+        let l = (f - r.dir * b).length();
+        let disc = (self.radius - l) * (self.radius + l);
+        // reject rays that pass outside
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        // stable roots: q = −(b + sign(b)√Δ), t = q and c/q
+        let fl = f.length();
+        let c = (fl - self.radius) * (fl + self.radius);
+        let q = -(b + disc.sqrt().copysign(b));
+        if q == 0.0 {
+            return None;
+        }
+        let (r0, r1) = (c / q, q);
+        let (t0, t1) = if r0 <= r1 { (r0, r1) } else { (r1, r0) };
+        // pick the nearest root in (0, t_max]
+        let t = if t0 > 0.0 { t0 } else { t1 };
+        (t > 0.0 && t <= t_max).then_some(t)
+    }
+
+    /// Whether the sphere meets the ray with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32) -> bool {
+        self.intersect_1(r, t_max).is_some_and(|t| t < t_max)
+    }
+
+    /// Packet twin of [`Sphere32::intersect_1`]: lanes of `active` with a hit in
+    /// (0, t_max], and their t.
+    #[inline]
+    pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> (Mask8, f32x8) {
+        let rad = f32x8::splat(self.radius);
+        // vector from the centre to the origin
+        let f = r.origin - Vec3x8::splat(self.center);
+        // project it onto the ray: b = f·d (d is unit)
+        let b = f.dot(r.dir);
+        // discriminant as r² − |f − b·d|², factored to keep the subtraction exact-ish
+        let l = (f - r.dir * b).length();
+        let disc = (rad - l) * (rad + l);
+        // reject rays that pass outside
+        let valid = active & disc.ge(f32x8::ZERO);
+        if valid.none() {
+            return (valid, t_max);
+        }
+        // stable roots: q = −(b + sign(b)√Δ), t = q and c/q
+        let fl = f.length();
+        let c = (fl - rad) * (fl + rad);
+        let sign = b & f32x8::splat(-0.0);
+        let q = -(b + (disc.sqrt() | sign));
+        let r0 = c / q;
+        let t0 = r0.min(q);
+        let t1 = r0.max(q);
+        // pick the nearest root in (0, t_max]
+        let t = t0.gt(f32x8::ZERO).select(t0, t1);
+        let valid = valid & t.gt(f32x8::ZERO) & t.le(t_max) & !q.eq8(f32x8::ZERO);
+        (valid, t)
+    }
+
+    /// Lanes of `active` whose ray meets the sphere with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        let (m, t) = self.intersect_x8(r, active, t_max);
+        m & t.lt(t_max)
+    }
+
+    /// Surface at distance t: the hit point re-projected onto the sphere.
+    pub fn surface_1(&self, r: &Ray1, t: f32) -> Surface32 {
+        let v = r.at(t) - self.center;
+        let normal = v.normalize_or(-r.dir);
+        let v = normal * self.radius;
+        let point = self.center + v;
+        let err = (v.abs() + self.center.abs()) * gamma32(6);
+        Surface32 { point, normal, err }
+    }
 }
 
 #[cfg(test)]

@@ -9,9 +9,14 @@
 
 use glam::DVec3;
 
-use super::{RefHit, SurfacePoint};
+use glam::Vec3;
+use wide::f32x8;
+
+use super::{RefHit, Surface32, SurfacePoint};
+use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
+use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
 use crate::scene::parse::is_degenerate_triangle;
 
 // ---------------------------------------------------------------- reference (f64)
@@ -106,6 +111,173 @@ pub fn surface_ref(v: &[DVec3; 3], hit: &RefHit) -> SurfacePoint {
     let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * gamma(7);
     let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
     SurfacePoint { point, normal, err }
+}
+
+// ---------------------------------------------------------------- fast path (f32)
+//
+// Edge functions are plain products and one subtraction, never an FMA: the shared edge
+// of two triangles then gives exactly opposite values in both (a·b − c·d rounds the same
+// as −(c·d − a·b)), which is what makes the test watertight. An FMA rounds only one of
+// the two products and breaks that symmetry.
+
+/// A triangle in the fast path's f32 frame: its three vertices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle32 {
+    pub v: [Vec3; 3],
+}
+
+impl Triangle32 {
+    /// From scene data, relative to `base`.
+    pub fn new(v: &[DVec3; 3], base: DVec3) -> Triangle32 {
+        Triangle32 {
+            v: v.map(|p| (p - base).as_vec3()),
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::new(
+            self.v[0].min(self.v[1]).min(self.v[2]),
+            self.v[0].max(self.v[1]).max(self.v[2]),
+        )
+    }
+
+    /// Nearest hit with 0 < t <= t_max (inclusive: the caller breaks exact ties):
+    /// (t, b1, b2), the barycentrics of the second and third vertex.
+    #[inline]
+    pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<(f32, f32, f32)> {
+        // (degenerate triangles are dropped when the primitives are built)
+        // translate the vertices to the ray origin
+        // permute so that the largest direction component is z
+        let mut p = self.v.map(|q| r.permute(q - r.origin));
+        // shear so the ray runs along +z
+        for q in &mut p {
+            q.x += r.shear.x * q.z;
+            q.y += r.shear.y * q.z;
+        }
+        // edge functions
+        let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
+        let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
+        let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
+        // reject when the edge functions disagree in sign (zero counts as inside)
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
+        if det == 0.0 {
+            return None;
+        }
+        // scaled distance, compared without dividing
+        let z = p.map(|q| q.z * r.shear.z);
+        let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let t = t_scaled * inv_det;
+        // t must be positive beyond its own rounding error (pbrt-v4's bound)
+        let max_z = z[0].abs().max(z[1].abs()).max(z[2].abs());
+        let max_x = p[0].x.abs().max(p[1].x.abs()).max(p[2].x.abs());
+        let max_y = p[0].y.abs().max(p[1].y.abs()).max(p[2].y.abs());
+        let delta_z = gamma32(3) * max_z;
+        let delta_x = gamma32(5) * (max_x + max_z);
+        let delta_y = gamma32(5) * (max_y + max_z);
+        let delta_e = 2.0 * (gamma32(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let delta_t =
+            3.0 * (gamma32(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
+        if t <= delta_t || t > t_max {
+            return None;
+        }
+        Some((t, e1 * inv_det, e2 * inv_det))
+    }
+
+    /// Whether the triangle meets the ray with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32) -> bool {
+        self.intersect_1(r, t_max).is_some_and(|h| h.0 < t_max)
+    }
+
+    /// Packet twin of [`Triangle32::intersect_1`]: lanes with a hit in (0, t_max], t, b1, b2.
+    #[inline]
+    pub fn intersect_x8(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        let zero = f32x8::ZERO;
+        // translate the vertices to the ray origin
+        // permute so that the largest direction component is z
+        let mut p = self.v.map(|q| r.permute(Vec3x8::splat(q) - r.origin));
+        // shear so the ray runs along +z
+        for q in &mut p {
+            q.x += r.shear.x * q.z;
+            q.y += r.shear.y * q.z;
+        }
+        // edge functions
+        let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
+        let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
+        let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
+        // reject when the edge functions disagree in sign (zero counts as inside)
+        let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
+        let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
+        let det = e0 + e1 + e2;
+        let valid = active.and_not(any_neg & any_pos) & !det.eq8(zero);
+        if valid.none() {
+            return (valid, zero, zero, zero);
+        }
+        // scaled distance, compared without dividing
+        let z = p.map(|q| q.z * r.shear.z);
+        let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
+        let sign = det & f32x8::splat(-0.0);
+        let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
+        let adet = det.abs();
+        let valid = valid & ts.gt(zero) & ts.le(t_max * adet);
+        if valid.none() {
+            return (valid, zero, zero, zero);
+        }
+        let inv_det = f32x8::splat(1.0) / det;
+        let t = t_scaled * inv_det;
+        // t must be positive beyond its own rounding error (pbrt-v4's bound)
+        let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
+        let max_z = amax(z[0], z[1], z[2]);
+        let max_x = amax(p[0].x, p[1].x, p[2].x);
+        let max_y = amax(p[0].y, p[1].y, p[2].y);
+        let g = |n| f32x8::splat(gamma32(n));
+        let delta_z = g(3) * max_z;
+        let delta_x = g(5) * (max_x + max_z);
+        let delta_y = g(5) * (max_y + max_z);
+        let delta_e =
+            f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        let max_e = amax(e0, e1, e2);
+        let delta_t = f32x8::splat(3.0)
+            * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+            * inv_det.abs();
+        let valid = valid & t.gt(delta_t) & t.le(t_max);
+        (valid, t, e1 * inv_det, e2 * inv_det)
+    }
+
+    /// Lanes of `active` whose ray meets the triangle with 0 < t < t_max.
+    #[inline]
+    pub fn occluded_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        let (m, t, _, _) = self.intersect_x8(r, active, t_max);
+        m & t.lt(t_max)
+    }
+
+    /// Surface at a hit: the point from barycentrics, the unit normal (b − a) × (c − a).
+    pub fn surface_1(&self, b1: f32, b2: f32) -> Surface32 {
+        let b0 = 1.0 - b1 - b2;
+        let terms = [self.v[0] * b0, self.v[1] * b1, self.v[2] * b2];
+        let point = terms[0] + terms[1] + terms[2];
+        let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * gamma32(7);
+        let normal = (self.v[1] - self.v[0])
+            .cross(self.v[2] - self.v[0])
+            .normalize_or(Vec3::Z);
+        Surface32 { point, normal, err }
+    }
 }
 
 #[cfg(test)]

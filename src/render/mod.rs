@@ -2,9 +2,11 @@
 //! nothing of files or windows.
 //!
 //! - [`reference`]: f64, one ray at a time, every object tested. The oracle.
+//! - [`packet`]: f32, 8-ray packets through a BVH. The fast path and the default.
 //! - [`frame`]: splits a frame into bands of rows over rayon.
 
 pub mod frame;
+pub mod packet;
 pub mod profile;
 pub mod reference;
 

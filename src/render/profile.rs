@@ -1,5 +1,6 @@
 //! Render profiles: named choices of code path and knobs, picked once per frame.
 //!
+//! Profiles: `fast` (the default: the packet path) and `reference` (the oracle).
 //! Today a profile is only its path; `profiles/*.toml` (knobs: precision, ray offsets,
 //! samples, ...) extends this.
 
@@ -11,6 +12,8 @@ use crate::scene::Scene;
 pub enum RenderPath {
     /// f64, one ray at a time, every object tested: the oracle.
     Reference,
+    /// f32, 8-ray packets through a binned-SAH BVH: the fast path.
+    Packet,
 }
 
 /// A named profile.
@@ -22,7 +25,7 @@ pub struct Profile {
 
 impl Profile {
     /// Names accepted by [`Profile::by_name`].
-    pub const NAMES: &'static [&'static str] = &["reference"];
+    pub const NAMES: &'static [&'static str] = &["fast", "reference"];
 
     /// The profile used when none is named.
     pub fn default_name() -> &'static str {
@@ -32,6 +35,7 @@ impl Profile {
     pub fn by_name(name: &str) -> Option<Profile> {
         let path = match name {
             "reference" => RenderPath::Reference,
+            "fast" => RenderPath::Packet,
             _ => return None,
         };
         Some(Profile {
@@ -44,6 +48,9 @@ impl Profile {
     pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
         match self.path {
             RenderPath::Reference => super::reference::render(scene, settings),
+            // The packet path has no refraction: scenes with glass go to the reference.
+            RenderPath::Packet if scene.has_prisms() => super::reference::render(scene, settings),
+            RenderPath::Packet => super::packet::render(scene, settings),
         }
     }
 }

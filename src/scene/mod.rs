@@ -5,6 +5,7 @@
 //! acceleration structures from it. Nothing here knows about rendering.
 
 pub mod camera;
+pub mod obj;
 pub mod parse;
 
 use glam::DVec3;
@@ -122,6 +123,9 @@ pub enum Shape {
         v: [DVec3; 6],
         glass: Glass,
     },
+    /// A triangle mesh from an OBJ file (`mesh PATH.obj`), shared so that a million
+    /// triangles stay one object (see [`obj`]).
+    Mesh(std::sync::Arc<obj::Mesh>),
 }
 
 /// One object of the scene file: a shape and its material.

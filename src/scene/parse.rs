@@ -293,7 +293,7 @@ impl<'a> Reader<'a> {
         let pixels = self.integer("pixels", 1, MAX_PIXELS)? as u32;
         let n_objects = self.integer("n_objects", 0, MAX_COUNT)?;
         let mut objects = Vec::new();
-        let mut per_kind = [0usize; 4];
+        let mut per_kind = [0usize; 5];
         for k in 1..=n_objects {
             let field = format!("object {k}: kind");
             let t = self.next(&field, "an object kind")?;
@@ -303,12 +303,13 @@ impl<'a> Reader<'a> {
                 "triangle" => 1,
                 "general" => 2,
                 "prism" => 3,
+                "mesh" => 4,
                 _ => {
                     return Err(self.error_at(
                         Some(t),
                         &field,
                         format!(
-                            "unknown object kind '{}' (expected sphere, triangle, general or prism)",
+                            "unknown object kind '{}' (expected sphere, triangle, general, prism or mesh)",
                             t.text
                         ),
                     ));
@@ -461,6 +462,26 @@ impl<'a> Reader<'a> {
                         cauchy_b: 0.0,
                     },
                 })
+            }
+            "mesh" => {
+                // the OBJ path is relative to the scene file
+                let field = format!("{who}: path");
+                let t = self.next(&field, "an OBJ file path")?;
+                let base = Path::new(self.file).parent().unwrap_or(Path::new(""));
+                let mesh = super::obj::load_obj(&base.join(t.text))
+                    .map_err(|e| self.error_at(Some(t), &field, e.to_string()))?;
+                let degenerate = (0..mesh.triangles.len())
+                    .filter(|&k| is_degenerate_triangle(&mesh.triangle(k)))
+                    .count();
+                if degenerate > 0 {
+                    self.warn_at(
+                        at,
+                        format!(
+                            "warning: {who} has {degenerate} zero-area triangles; they will never be hit"
+                        ),
+                    );
+                }
+                Ok(Shape::Mesh(std::sync::Arc::new(mesh)))
             }
             _ => unreachable!("kind checked by the caller"),
         }

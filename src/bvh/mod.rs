@@ -1,0 +1,90 @@
+//! The bounding volume hierarchy of the fast path, and the short list beside it.
+//!
+//! [`Bvh`] owns a [`PrimSet`]: its bounded kinds (spheres, triangles, fully clipped
+//! quadrics) sit in a binned-SAH tree ([`build`]); quadrics unclipped on some axis
+//! and the floor cannot have finite boxes and are tested after the tree, in that
+//! order, on every query. Queries come in two widths with the same contract:
+//! [`Bvh::intersect_x8`]/[`Bvh::occluded_x8`] for packets and
+//! [`Bvh::intersect_1`]/[`Bvh::occluded_1`] for single rays.
+//!
+//! Edge rules: a hit counts iff 0 < t < t_max; an exact tie in t goes to the lower
+//! object index (file order), the floor last; shadow (any-hit) queries stop at the
+//! first blocker.
+
+pub mod build;
+pub mod node;
+pub mod traverse_1;
+pub mod traverse_x8;
+pub mod validate;
+
+pub use node::{Aabb, BvhNode};
+
+use crate::geometry::PrimSet;
+
+/// Depth limit of the traversal stacks; the builder keeps the tree below it.
+pub const STACK_SIZE: usize = 256;
+
+/// Traversal counters (design item 11): box tests and primitive tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Steps {
+    pub boxes: u64,
+    pub prims: u64,
+}
+
+/// A BVH over a primitive set, with the unbounded primitives beside it.
+#[derive(Clone, Debug)]
+pub struct Bvh {
+    pub nodes: Vec<BvhNode>,
+    pub prims: PrimSet,
+}
+
+impl Bvh {
+    /// Builds the tree (binned SAH) over the bounded primitives of `prims`,
+    /// reordering them into leaf order. Validated in debug builds.
+    pub fn build(mut prims: PrimSet) -> Bvh {
+        let nodes = build::build(&mut prims);
+        let bvh = Bvh { nodes, prims };
+        #[cfg(debug_assertions)]
+        if let Err(e) = bvh.validate() {
+            panic!("BVH invariant broken: {e}");
+        }
+        bvh
+    }
+
+    /// The SAH cost of the tree: Σ over nodes of A(node)/A(root) times
+    /// C_T for an interior node and C_I · n for a leaf (C_I = 1).
+    pub fn sah_cost(&self) -> f64 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let ra = root.bounds().area().max(f32::MIN_POSITIVE) as f64;
+        self.nodes
+            .iter()
+            .map(|n| {
+                let w = n.bounds().area() as f64 / ra;
+                if n.is_leaf() {
+                    w * n.count() as f64
+                } else {
+                    w * build::C_TRAVERSE as f64
+                }
+            })
+            .sum()
+    }
+
+    /// Depth of the deepest leaf (root = 1).
+    pub fn depth(&self) -> usize {
+        fn go(b: &Bvh, i: usize) -> usize {
+            let n = &b.nodes[i];
+            if n.is_leaf() {
+                1
+            } else {
+                1 + go(b, n.first as usize).max(go(b, n.first as usize + 1))
+            }
+        }
+        if self.nodes.is_empty() {
+            0
+        } else {
+            go(self, 0)
+        }
+    }
+}

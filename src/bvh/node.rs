@@ -1,0 +1,135 @@
+//! The BVH's node and box types.
+
+use glam::{Vec3, Vec3A};
+use wide::f32x8;
+
+use crate::geometry::PrimKind;
+use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1, RayPacket8};
+
+/// An axis-aligned box; empty when lo > hi.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        lo: Vec3::splat(f32::INFINITY),
+        hi: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn new(lo: Vec3, hi: Vec3) -> Aabb {
+        Aabb { lo, hi }
+    }
+
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb::new(self.lo.min(o.lo), self.hi.max(o.hi))
+    }
+
+    pub fn contains(&self, o: &Aabb) -> bool {
+        self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
+    }
+
+    /// Surface area (0 for an empty box).
+    pub fn area(&self) -> f32 {
+        let d = (self.hi - self.lo).max(Vec3::ZERO);
+        2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+    }
+
+    pub fn centroid(&self) -> Vec3 {
+        (self.lo + self.hi) * 0.5
+    }
+}
+
+/// A node of the flat BVH array. 32 B, two per cache line, 32-byte aligned.
+///
+/// `meta` bits 0..28: primitive count; 0 marks an interior node. Bits 28..31: for a
+/// leaf the [`PrimKind`] of all its primitives, for an interior node the split axis.
+/// `first`: interior: index of the left child, the right child is `first + 1`;
+/// leaf: index of its first primitive in the PrimSet array of its kind (a leaf's
+/// primitives are contiguous there).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct BvhNode {
+    pub lo: [f32; 3],
+    pub first: u32,
+    pub hi: [f32; 3],
+    pub meta: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
+
+const COUNT_MASK: u32 = (1 << 28) - 1;
+
+impl BvhNode {
+    pub fn interior(b: Aabb, left: u32, axis: usize) -> BvhNode {
+        BvhNode {
+            lo: b.lo.into(),
+            first: left,
+            hi: b.hi.into(),
+            meta: (axis as u32) << 28,
+        }
+    }
+
+    pub fn leaf(b: Aabb, first: u32, count: u32, kind: PrimKind) -> BvhNode {
+        debug_assert!(count > 0 && count <= COUNT_MASK);
+        BvhNode {
+            lo: b.lo.into(),
+            first,
+            hi: b.hi.into(),
+            meta: count | (kind as u32) << 28,
+        }
+    }
+
+    #[inline]
+    pub fn count(&self) -> u32 {
+        self.meta & COUNT_MASK
+    }
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.count() != 0
+    }
+    #[inline]
+    pub fn axis(&self) -> usize {
+        (self.meta >> 28) as usize
+    }
+    #[inline]
+    pub fn kind(&self) -> PrimKind {
+        PrimKind::from_u32(self.meta >> 28)
+    }
+    pub fn bounds(&self) -> Aabb {
+        Aabb::new(self.lo.into(), self.hi.into())
+    }
+
+    /// Slab test of one ray: the entry distance when the ray meets the box with
+    /// 0 <= t and t <= t_max (far bound widened by 1 + 2γ(3)).
+    #[inline]
+    pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<f32> {
+        let o = Vec3A::from(r.origin);
+        let inv = Vec3A::from(r.inv_dir);
+        let t0 = (Vec3A::from(self.lo) - o) * inv;
+        let t1 = (Vec3A::from(self.hi) - o) * inv;
+        let near = t0.min(t1).max_element().max(0.0);
+        let far = (t0.max(t1).min_element() * FAR_WIDEN).min(t_max);
+        (near <= far).then_some(near)
+    }
+
+    /// Slab test of a packet: the lanes of `active` that meet the box with
+    /// 0 <= t <= t_max (far bound widened by 1 + 2γ(3)). wide's `min`/`max` are used,
+    /// never `fast_*`; with the slab rule no NaN can arise anyway.
+    #[inline]
+    pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        let slab = |lo: f32, hi: f32, o: f32x8, inv: f32x8| {
+            let t0 = (f32x8::splat(lo) - o) * inv;
+            let t1 = (f32x8::splat(hi) - o) * inv;
+            (t0.min(t1), t0.max(t1))
+        };
+        let (nx, fx) = slab(self.lo[0], self.hi[0], r.origin.x, r.inv_dir.x);
+        let (ny, fy) = slab(self.lo[1], self.hi[1], r.origin.y, r.inv_dir.y);
+        let (nz, fz) = slab(self.lo[2], self.hi[2], r.origin.z, r.inv_dir.z);
+        let near = nx.max(ny).max(nz.max(f32x8::ZERO));
+        let far = (fx.min(fy).min(fz) * f32x8::splat(FAR_WIDEN)).min(t_max);
+        active & near.le(far)
+    }
+}

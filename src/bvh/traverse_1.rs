@@ -1,0 +1,131 @@
+//! Single-ray traversal of the same tree: the path of incoherent rays and the
+//! baseline the packet path is measured against.
+//!
+//! Ordered, depth first: at an interior node both children's boxes are tested; the
+//! nearer is visited first and the farther pushed with its entry distance, skipped
+//! when popped if a nearer hit has been found meanwhile.
+
+use super::{Bvh, STACK_SIZE, Steps};
+use crate::geometry::{Hit1, PrimKind};
+use crate::math::packet::Ray1;
+
+impl Bvh {
+    /// Nearest hit below `hit.t`, recorded in `hit`.
+    pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        if let Some(root) = self.nodes.first() {
+            steps.boxes += 1;
+            if root.intersect_1(r, hit.t).is_some() {
+                let mut stack = [(0u32, 0f32); STACK_SIZE];
+                let mut sp = 0;
+                let mut ni = 0usize;
+                loop {
+                    let node = &self.nodes[ni];
+                    if node.is_leaf() {
+                        let count = node.count() as usize;
+                        steps.prims += count as u64;
+                        self.prims
+                            .intersect_1(node.kind(), node.first as usize, count, r, hit);
+                    } else {
+                        let l = node.first as usize;
+                        steps.boxes += 2;
+                        let hl = self.nodes[l].intersect_1(r, hit.t);
+                        let hr = self.nodes[l + 1].intersect_1(r, hit.t);
+                        match (hl, hr) {
+                            (Some(tl), Some(tr)) => {
+                                let (near, far, tf) = if tl <= tr {
+                                    (l, l + 1, tr)
+                                } else {
+                                    (l + 1, l, tl)
+                                };
+                                stack[sp] = (far as u32, tf);
+                                sp += 1;
+                                ni = near;
+                                continue;
+                            }
+                            (Some(_), None) => {
+                                ni = l;
+                                continue;
+                            }
+                            (None, Some(_)) => {
+                                ni = l + 1;
+                                continue;
+                            }
+                            (None, None) => {}
+                        }
+                    }
+                    // pop the next subtree still in front of the nearest hit
+                    let mut next = None;
+                    while sp > 0 {
+                        sp -= 1;
+                        let (n, t) = stack[sp];
+                        if t <= hit.t {
+                            next = Some(n as usize);
+                            break;
+                        }
+                    }
+                    match next {
+                        Some(n) => ni = n,
+                        None => break,
+                    }
+                }
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
+        }
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
+        }
+    }
+
+    /// Whether anything lies on the ray with 0 < t < t_max.
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
+                return true;
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            if self
+                .prims
+                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
+            {
+                return true;
+            }
+        }
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let mut stack = [0u32; STACK_SIZE];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let node = &self.nodes[stack[sp] as usize];
+            steps.boxes += 1;
+            if node.intersect_1(r, t_max).is_none() {
+                continue;
+            }
+            if node.is_leaf() {
+                let count = node.count() as usize;
+                steps.prims += count as u64;
+                if self
+                    .prims
+                    .occluded_1(node.kind(), node.first as usize, count, r, t_max)
+                {
+                    return true;
+                }
+            } else {
+                stack[sp] = node.first;
+                stack[sp + 1] = node.first + 1;
+                sp += 2;
+            }
+        }
+        false
+    }
+}

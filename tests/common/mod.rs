@@ -1,0 +1,252 @@
+//! Shared helpers of the equivalence tests: seeded ray sets, generated scenes and
+//! image comparison with masks of legitimate differences.
+#![allow(dead_code)]
+
+use glam::DVec3;
+use octaray::math::Ray;
+use octaray::output::Framebuffer;
+use octaray::render::reference::{Reference, Target};
+use octaray::scene::{Camera, Material, Object, PointLight, Scene, Shape, SpotLight};
+
+/// A small deterministic generator (SplitMix64), so no test depends on a crate's RNG.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.f64()
+    }
+    pub fn vec_in(&mut self, lo: DVec3, hi: DVec3) -> DVec3 {
+        DVec3::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
+    }
+    /// Uniform on the unit sphere.
+    pub fn unit(&mut self) -> DVec3 {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f64::consts::TAU);
+        let s = (1.0 - z * z).sqrt();
+        DVec3::new(s * phi.cos(), s * phi.sin(), z)
+    }
+}
+
+pub fn material(rng: &mut Rng) -> Material {
+    Material {
+        color: DVec3::new(rng.f64(), rng.f64(), rng.f64()),
+        ka: 0.3,
+        kd: 0.3,
+        ks: 0.3,
+        kr: rng.range(0.0, 0.4),
+        shine: rng.range(1.0, 20.0),
+    }
+}
+
+/// A scene of `n` mixed primitives (spheres, triangles, clipped and unclipped
+/// quadrics, a prism now and then) scattered over the floor, lit by point lights and
+/// a spotlight.
+pub fn generated_scene(n: usize, seed: u64) -> Scene {
+    let mut rng = Rng(seed);
+    let mut objects = Vec::with_capacity(n);
+    let lo = DVec3::new(-80.0, -80.0, 0.0);
+    let hi = DVec3::new(60.0, 60.0, 40.0);
+    for k in 0..n {
+        let c = rng.vec_in(lo, hi);
+        let shape = match k % 10 {
+            0..=3 => Shape::Sphere {
+                center: c,
+                radius: rng.range(0.5, 3.0),
+            },
+            4..=7 => {
+                let s = rng.range(1.0, 5.0);
+                Shape::Triangle {
+                    v: [c, c + rng.unit() * s, c + rng.unit() * s],
+                }
+            }
+            8 => {
+                // an ellipsoid clipped to a box around it (some clip only one axis)
+                let r = rng.range(1.0, 3.0);
+                let coef = [
+                    1.0,
+                    1.0,
+                    1.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -2.0 * c.x,
+                    -2.0 * c.y,
+                    -2.0 * c.z,
+                    c.length_squared() - r * r,
+                ];
+                let m = coef.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let full = rng.f64() < 0.8;
+                let size = if full {
+                    DVec3::new(2.0 * r, 2.0 * r, r * 1.5)
+                } else {
+                    DVec3::new(0.0, 0.0, r * 1.5)
+                };
+                Shape::Quadric(octaray::scene::Quadric {
+                    coef: coef.map(|v| v / m),
+                    min: c - DVec3::splat(r),
+                    size,
+                })
+            }
+            _ => {
+                let a = c;
+                let b = c + DVec3::new(3.0, 0.0, 0.0);
+                let cc = c + DVec3::new(1.0, 2.5, 0.0);
+                let up = DVec3::new(0.0, 0.0, 4.0);
+                Shape::Prism {
+                    v: [a, b, cc, a + up, b + up, cc + up],
+                    glass: octaray::scene::Glass {
+                        kt: 0.0,
+                        cauchy_a: 1.5,
+                        cauchy_b: 0.004,
+                    },
+                }
+            }
+        };
+        objects.push(Object {
+            shape,
+            material: material(&mut rng),
+        });
+    }
+    Scene {
+        recursion_level: 3,
+        pixels: 64,
+        objects,
+        point_lights: vec![
+            PointLight {
+                position: DVec3::new(70.0, 70.0, 70.0),
+                color: DVec3::new(1.0, 0.8, 0.6),
+            },
+            PointLight {
+                position: DVec3::new(-70.0, 60.0, 50.0),
+                color: DVec3::new(0.3, 0.4, 1.0),
+            },
+        ],
+        spot_lights: vec![SpotLight {
+            position: DVec3::new(0.0, 0.0, 150.0),
+            color: DVec3::new(0.0, 1.0, 0.0),
+            direction: DVec3::NEG_Z,
+            cutoff_deg: 25.0,
+        }],
+    }
+}
+
+/// Comparison of two images with masks of legitimate differences.
+#[derive(Debug, Default)]
+pub struct ImageDiff {
+    pub pixels: usize,
+    pub max_diff: u8,
+    pub psnr_db: f64,
+    /// Pixels off by more than 2/255 in some channel.
+    pub off2: usize,
+    /// Of those, pixels on a silhouette (the primary-hit object differs from a
+    /// neighbour's) or on an edge of the reference image (a channel jumps by more
+    /// than 24/255 to a neighbour: shadow edges, cone edges, tile edges, reflections of them).
+    pub off2_masked: usize,
+    /// Pixels off by more than 2/255 outside those masks.
+    pub off2_unmasked: usize,
+}
+
+impl ImageDiff {
+    pub fn unmasked_fraction(&self) -> f64 {
+        self.off2_unmasked as f64 / self.pixels as f64
+    }
+}
+
+/// The primary-hit object of each pixel on the reference path (−1 background, −2 floor).
+pub fn reference_ids(scene: &Scene, camera: &Camera, size: u32) -> Vec<i64> {
+    let grid = camera.pixel_grid(size, size);
+    let tracer = Reference::new(scene);
+    let mut ids = Vec::with_capacity((size * size) as usize);
+    for j in 0..size {
+        for i in 0..size {
+            let ray = Ray::new(grid.eye, grid.direction(i as f64, j as f64));
+            ids.push(match tracer.nearest(&ray, f64::INFINITY) {
+                None => -1,
+                Some(f) => match f.target {
+                    Target::Floor => -2,
+                    Target::Object(k) => k as i64,
+                },
+            });
+        }
+    }
+    ids
+}
+
+pub fn compare(reference: &Framebuffer, fast: &Framebuffer, ids: &[i64]) -> ImageDiff {
+    assert_eq!(
+        (reference.width, reference.height),
+        (fast.width, fast.height)
+    );
+    let (w, h) = (reference.width as i64, reference.height as i64);
+    let mut d = ImageDiff {
+        pixels: reference.pixels.len(),
+        ..ImageDiff::default()
+    };
+    let mut sq = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            let k = (y * w + x) as usize;
+            let (a, b) = (reference.pixels[k], fast.pixels[k]);
+            let diff = (0..3).map(|c| a[c].abs_diff(b[c])).max().unwrap();
+            sq += (0..3)
+                .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
+                .sum::<f64>();
+            d.max_diff = d.max_diff.max(diff);
+            if diff <= 2 {
+                continue;
+            }
+            d.off2 += 1;
+            let mut edge = false;
+            for (dx, dy) in [
+                (-1, 0),
+                (1, 0),
+                (0, -1),
+                (0, 1),
+                (-1, -1),
+                (1, 1),
+                (-1, 1),
+                (1, -1),
+            ] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                    continue;
+                }
+                let n = (ny * w + nx) as usize;
+                let jump = (0..3)
+                    .map(|c| a[c].abs_diff(reference.pixels[n][c]))
+                    .max()
+                    .unwrap();
+                if ids[n] != ids[k] || jump > 24 {
+                    edge = true;
+                }
+            }
+            if edge {
+                d.off2_masked += 1;
+            } else {
+                d.off2_unmasked += 1;
+            }
+        }
+    }
+    let mse = sq / (3.0 * d.pixels as f64);
+    d.psnr_db = if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    };
+    d
+}
