@@ -12,3 +12,4 @@ pub mod math;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod viewer;

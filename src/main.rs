@@ -12,6 +12,7 @@ use octaray::render::RenderSettings;
 use octaray::render::profile::Profile;
 use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
 use octaray::scene::{Camera, Scene};
+use octaray::viewer;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -28,6 +29,26 @@ struct Cli {
 enum Command {
     /// Render a scene file to BMP or PNG.
     Render(RenderArgs),
+    /// Fly through a scene in a window, ray traced live (keys in the title bar).
+    View(ViewArgs),
+}
+
+#[derive(Args, Debug)]
+struct ViewArgs {
+    /// Scene file; without it, the assignment's given scene built into the binary.
+    scene: Option<PathBuf>,
+    /// Render profile for the window and captures [default: fast if available, else reference].
+    #[arg(long)]
+    profile: Option<String>,
+    /// Window size.
+    #[arg(long, default_value = "768x768")]
+    size: viewer::Size,
+    /// Directory for captures (key 0): Output_11.bmp, Output_12.bmp, ...
+    #[arg(long, default_value = ".")]
+    out_dir: PathBuf,
+    /// Benchmark: render N frames along a scripted flight without a window and print fps.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    frames: Option<u32>,
 }
 
 #[derive(Args, Debug, Default)]
@@ -175,10 +196,54 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+fn run_view(args: &ViewArgs) -> Result<(), Failure> {
+    let (parsed, name) = load(args.scene.as_deref())?;
+    let profile_name: &str = match &args.profile {
+        Some(name) => name,
+        None => viewer::default_profile_name(),
+    };
+    let profile = Profile::by_name(profile_name).ok_or_else(|| {
+        Failure::input(format!(
+            "--profile: unknown profile '{profile_name}' (available: {})",
+            Profile::NAMES.join(", ")
+        ))
+    })?;
+    if let Some(frames) = args.frames {
+        let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames);
+        println!("{name}: {report}");
+        return Ok(());
+    }
+    if !args.out_dir.is_dir() {
+        return Err(Failure::input(format!(
+            "--out-dir: {} is not a directory",
+            args.out_dir.display()
+        )));
+    }
+    // The same camera `octaray render` uses by default, built the same way, so that a
+    // capture before any key is pressed is the same image.
+    let default = Camera::default();
+    let camera = Camera::from_look(default.eye, default.look, default.up, default.fov_y_deg)
+        .ok_or_else(|| Failure::input("camera: degenerate default camera"))?;
+    let config = viewer::ViewConfig {
+        scene: std::sync::Arc::new(parsed.scene),
+        scene_name: name,
+        capture_profile: profile.clone(),
+        profile,
+        size: args.size,
+        out_dir: args.out_dir.clone(),
+        camera,
+    };
+    viewer::run(&config).map_err(|e| Failure {
+        code: 1,
+        message: e.to_string(),
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(&args),
+        Some(Command::View(args)) => run_view(&args),
         None => run_render(&RenderArgs {
             fov: 80.0,
             profile: Profile::default_name().into(),

@@ -1,0 +1,815 @@
+//! The live viewer: a minifb window that ray traces the scene continuously while the
+//! assignment's keys fly the camera ([`flycam`]).
+//!
+//! Three threads, none of which waits for another:
+//! - the **event loop** (the caller's thread) polls the window, moves the camera, submits a
+//!   frame to the render worker whenever it is idle, and presents the latest finished
+//!   frame, scaled up to the window;
+//! - the **render worker** renders one preview frame at a time with the profile's
+//!   renderer (which spreads it over rayon's pool);
+//! - the **capture worker** renders captures (key 0) at the scene's full resolution and
+//!   writes them with [`write_next_output`], in the order they were asked for.
+//!
+//! Resolution ([`Refiner`]): while the camera moves, each frame is rendered at the largest
+//! fraction 1/d of the window's resolution expected to take at most [`MOVING_FRAME_S`]; once
+//! the camera is still, d halves every frame until the full resolution is reached.
+//!
+//! [`benchmark`] runs the same policy along a scripted flight without a window.
+
+pub mod flycam;
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::str::FromStr;
+use std::sync::{Arc, mpsc};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use minifb::{Key, Window, WindowOptions};
+
+use crate::output::{Framebuffer, write_next_output};
+use crate::render::profile::Profile;
+use crate::render::{RenderSettings, RenderStats};
+use crate::scene::{Camera, Scene};
+use flycam::{FlyCam, Motion};
+
+/// The profile the viewer uses when none is named: the first of these that exists.
+/// Switching the viewer's default is this one line.
+pub const PREFERRED_PROFILES: &[&str] = &["fast", "reference"];
+
+/// The viewer's default profile name.
+pub fn default_profile_name() -> &'static str {
+    PREFERRED_PROFILES
+        .iter()
+        .copied()
+        .find(|name| Profile::by_name(name).is_some())
+        .unwrap_or_else(Profile::default_name)
+}
+
+/// Render time a moving frame aims for (40 fps, leaving headroom for the 30 fps bar).
+pub const MOVING_FRAME_S: f64 = 1.0 / 40.0;
+/// The coarsest preview: 1/16 of the window's resolution along each axis.
+pub const MAX_DIVISOR: u32 = 16;
+
+/// The keys, as the title bar lists them.
+pub const KEY_HELP: &str = "arrows/PgUp/PgDn move, 1-6 turn, Shift fast, 0 capture, Esc quit";
+
+/// A window size, `WxH` on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl FromStr for Size {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Size, String> {
+        let bad = || format!("expected WIDTHxHEIGHT like 768x768, got '{s}'");
+        let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+        let dim = |t: &str| {
+            t.trim()
+                .parse::<u32>()
+                .ok()
+                .filter(|&v| (1..=crate::scene::parse::MAX_PIXELS).contains(&i64::from(v)))
+                .ok_or_else(|| {
+                    format!(
+                        "'{t}' is not a size in 1..={} pixels",
+                        crate::scene::parse::MAX_PIXELS
+                    )
+                })
+        };
+        Ok(Size {
+            width: dim(w)?,
+            height: dim(h)?,
+        })
+    }
+}
+
+impl fmt::Display for Size {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}x{}", self.width, self.height)
+    }
+}
+
+/// Everything the viewer needs.
+#[derive(Clone)]
+pub struct ViewConfig {
+    pub scene: Arc<Scene>,
+    /// Shown in messages.
+    pub scene_name: String,
+    /// Renders the preview frames.
+    pub profile: Profile,
+    /// Renders captures (key 0) at the scene's resolution. Today the same profile as the
+    /// preview: profiles have no separate preview quality yet.
+    pub capture_profile: Profile,
+    /// Initial window size.
+    pub size: Size,
+    /// Where captures go.
+    pub out_dir: PathBuf,
+    /// The initial camera.
+    pub camera: Camera,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error("cannot open a window (is DISPLAY set?): {0}")]
+    Window(String),
+}
+
+/// Maps a key to the camera motion it drives (the assignment's keys; the number-pad
+/// digits work like the top-row ones).
+pub fn motion_for_key(key: Key) -> Option<Motion> {
+    Some(match key {
+        Key::Up => Motion::Forward,
+        Key::Down => Motion::Backward,
+        Key::Left => Motion::Left,
+        Key::Right => Motion::Right,
+        Key::PageUp => Motion::Up,
+        Key::PageDown => Motion::Down,
+        Key::Key1 | Key::NumPad1 => Motion::LookLeft,
+        Key::Key2 | Key::NumPad2 => Motion::LookRight,
+        Key::Key3 | Key::NumPad3 => Motion::LookUp,
+        Key::Key4 | Key::NumPad4 => Motion::LookDown,
+        Key::Key5 | Key::NumPad5 => Motion::TiltClockwise,
+        Key::Key6 | Key::NumPad6 => Motion::TiltCounterclockwise,
+        _ => return None,
+    })
+}
+
+fn is_capture_key(key: Key) -> bool {
+    matches!(key, Key::Key0 | Key::NumPad0)
+}
+
+fn is_shift(key: Key) -> bool {
+    matches!(key, Key::LeftShift | Key::RightShift)
+}
+
+/// The preview image size for a window of `w × h` at divisor `d` (at least 1 × 1).
+pub fn preview_size(w: u32, h: u32, d: u32) -> (u32, u32) {
+    let d = d.max(1);
+    (w.div_ceil(d).max(1), h.div_ceil(d).max(1))
+}
+
+/// Picks preview resolutions from the measured cost of recent frames.
+#[derive(Clone, Debug, Default)]
+pub struct Refiner {
+    /// Smoothed render seconds per pixel; `None` before the first frame.
+    secs_per_pixel: Option<f64>,
+}
+
+impl Refiner {
+    /// The divisor for a moving frame of a `w × h` window: the smallest d whose frame is
+    /// expected to render within [`MOVING_FRAME_S`], or [`MAX_DIVISOR`]. Before any frame
+    /// has been measured, 4.
+    pub fn moving_divisor(&self, w: u32, h: u32) -> u32 {
+        let Some(spp) = self.secs_per_pixel else {
+            return 4.min(MAX_DIVISOR);
+        };
+        (1..=MAX_DIVISOR)
+            .find(|&d| {
+                let (pw, ph) = preview_size(w, h, d);
+                pw as f64 * ph as f64 * spp <= MOVING_FRAME_S
+            })
+            .unwrap_or(MAX_DIVISOR)
+    }
+
+    /// The next divisor while the camera is still.
+    pub fn refine(d: u32) -> u32 {
+        (d / 2).max(1)
+    }
+
+    /// Records a finished frame of `pixels` pixels that took `elapsed`.
+    pub fn observe(&mut self, pixels: u64, elapsed: Duration) {
+        let spp = elapsed.as_secs_f64() / pixels.max(1) as f64;
+        self.secs_per_pixel = Some(match self.secs_per_pixel {
+            None => spp,
+            Some(old) => 0.6 * old + 0.4 * spp,
+        });
+    }
+}
+
+/// A preview frame to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Job {
+    camera: Camera,
+    /// Window size.
+    width: u32,
+    height: u32,
+    divisor: u32,
+}
+
+/// A finished preview frame.
+struct Frame {
+    job: Job,
+    image: Framebuffer,
+    stats: RenderStats,
+}
+
+fn render_job(scene: &Scene, profile: &Profile, job: &Job) -> Frame {
+    let (w, h) = preview_size(job.width, job.height, job.divisor);
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        camera: job.camera,
+        threads: None,
+        progress: false,
+    };
+    let rendered = profile.render(scene, &settings);
+    Frame {
+        job: *job,
+        image: rendered.image,
+        stats: rendered.stats,
+    }
+}
+
+/// Scales `image` up (nearest pixel) into a `w × h` window buffer of 0RGB words.
+fn present_into(image: &Framebuffer, w: usize, h: usize, buffer: &mut Vec<u32>) {
+    buffer.clear();
+    buffer.resize(w * h, 0);
+    if image.width == 0 || image.height == 0 || w == 0 || h == 0 {
+        return;
+    }
+    let (iw, ih) = (image.width as usize, image.height as usize);
+    let columns: Vec<usize> = (0..w).map(|x| (x * iw / w).min(iw - 1)).collect();
+    for (y, row) in buffer.chunks_exact_mut(w).enumerate() {
+        let src = &image.pixels[(y * ih / h).min(ih - 1) * iw..][..iw];
+        for (out, &sx) in row.iter_mut().zip(&columns) {
+            let [r, g, b] = src[sx];
+            *out = (r as u32) << 16 | (g as u32) << 8 | b as u32;
+        }
+    }
+}
+
+/// The render worker: takes jobs one at a time, sends finished frames back. Ends when
+/// the job sender is dropped.
+fn spawn_render_worker(
+    scene: Arc<Scene>,
+    profile: Profile,
+) -> (
+    mpsc::Sender<Job>,
+    mpsc::Receiver<Frame>,
+    thread::JoinHandle<()>,
+) {
+    let (job_tx, job_rx) = mpsc::channel::<Job>();
+    let (frame_tx, frame_rx) = mpsc::channel::<Frame>();
+    let handle = thread::Builder::new()
+        .name("octaray-preview".into())
+        .spawn(move || {
+            for job in job_rx {
+                if frame_tx.send(render_job(&scene, &profile, &job)).is_err() {
+                    break;
+                }
+            }
+        })
+        .expect("spawning a thread");
+    (job_tx, frame_rx, handle)
+}
+
+/// What became of a capture.
+struct CaptureDone {
+    result: Result<PathBuf, String>,
+    elapsed: Duration,
+}
+
+/// Renders `camera` at the scene's resolution with `profile` and writes it under the next
+/// free `Output_1N.bmp` in `out_dir`.
+pub fn capture(
+    scene: &Scene,
+    profile: &Profile,
+    camera: Camera,
+    out_dir: &Path,
+) -> Result<PathBuf, String> {
+    let settings = RenderSettings {
+        camera,
+        ..RenderSettings::for_scene(scene)
+    };
+    let rendered = profile.render(scene, &settings);
+    write_next_output(&rendered.image, out_dir).map_err(|e| e.to_string())
+}
+
+/// The capture worker: renders and writes captures in the order they were asked for.
+fn spawn_capture_worker(
+    scene: Arc<Scene>,
+    profile: Profile,
+    out_dir: PathBuf,
+) -> (
+    mpsc::Sender<Camera>,
+    mpsc::Receiver<CaptureDone>,
+    thread::JoinHandle<()>,
+) {
+    let (cam_tx, cam_rx) = mpsc::channel::<Camera>();
+    let (done_tx, done_rx) = mpsc::channel::<CaptureDone>();
+    let handle = thread::Builder::new()
+        .name("octaray-capture".into())
+        .spawn(move || {
+            for camera in cam_rx {
+                let start = Instant::now();
+                let result = capture(&scene, &profile, camera, &out_dir);
+                let done = CaptureDone {
+                    result,
+                    elapsed: start.elapsed(),
+                };
+                match &done.result {
+                    Ok(path) => eprintln!(
+                        "octaray: captured {} ({:.2} s), eye {}",
+                        path.display(),
+                        done.elapsed.as_secs_f64(),
+                        fmt_vec(camera.eye)
+                    ),
+                    Err(e) => eprintln!("octaray: capture failed: {e}"),
+                }
+                // The window may be gone already; the capture is on disk either way.
+                let _ = done_tx.send(done);
+            }
+        })
+        .expect("spawning a thread");
+    (cam_tx, done_rx, handle)
+}
+
+fn fmt_vec(v: DVec3) -> String {
+    format!("({:.1}, {:.1}, {:.1})", v.x, v.y, v.z)
+}
+
+/// Frames per second over the last second of finished frames.
+#[derive(Default)]
+struct FpsMeter {
+    times: VecDeque<Instant>,
+}
+
+impl FpsMeter {
+    fn tick(&mut self, now: Instant) {
+        self.times.push_back(now);
+        while self
+            .times
+            .front()
+            .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
+        {
+            self.times.pop_front();
+        }
+    }
+
+    fn fps(&self) -> Option<f64> {
+        let (first, last) = (self.times.front()?, self.times.back()?);
+        let span = last.duration_since(*first).as_secs_f64();
+        (self.times.len() >= 2 && span > 0.0).then(|| (self.times.len() - 1) as f64 / span)
+    }
+}
+
+/// Key events as minifb reports them, every press and release in order (polling key
+/// levels once per loop would lose a tap whose press and release arrive together).
+#[derive(Clone, Default)]
+struct KeyEvents(Rc<RefCell<Vec<(Key, bool)>>>);
+
+impl minifb::InputCallback for KeyEvents {
+    fn add_char(&mut self, _uni_char: u32) {}
+
+    fn set_key_state(&mut self, key: Key, state: bool) {
+        self.0.borrow_mut().push((key, state));
+    }
+}
+
+/// Opens the window and runs until Esc or the window is closed. Pending captures are
+/// finished before returning.
+pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
+    let mut window = Window::new(
+        "octaray",
+        config.size.width as usize,
+        config.size.height as usize,
+        WindowOptions {
+            resize: true,
+            ..WindowOptions::default()
+        },
+    )
+    .map_err(|e| ViewerError::Window(e.to_string()))?;
+    window.set_target_fps(120);
+    let events = KeyEvents::default();
+    window.set_input_callback(Box::new(events.clone()));
+
+    let (job_tx, frame_rx, render_thread) =
+        spawn_render_worker(config.scene.clone(), config.profile.clone());
+    let (capture_tx, capture_rx, capture_thread) = spawn_capture_worker(
+        config.scene.clone(),
+        config.capture_profile.clone(),
+        config.out_dir.clone(),
+    );
+
+    let mut flycam = FlyCam::new(config.camera);
+    let mut refiner = Refiner::default();
+    let mut fps = FpsMeter::default();
+    let mut shift = false;
+    let mut was_active = window.is_active();
+    let mut busy = false;
+    let mut submitted: Option<Job> = None;
+    let mut shown: Option<Frame> = None;
+    let mut buffer: Vec<u32> = Vec::new();
+    let mut buffer_size = (0, 0);
+    let mut captures_pending = 0usize;
+    let mut capture_status = String::new();
+    let mut title = String::new();
+    let mut last_title = Instant::now() - Duration::from_secs(1);
+    let mut last_tick = Instant::now();
+
+    'frames: while window.is_open() {
+        // Input.
+        let now = Instant::now();
+        let dt = now.duration_since(last_tick).as_secs_f64().min(0.25);
+        last_tick = now;
+        let pending: Vec<(Key, bool)> = std::mem::take(&mut *events.0.borrow_mut());
+        for (key, down) in pending {
+            if is_shift(key) {
+                shift = down;
+            } else if let Some(motion) = motion_for_key(key) {
+                if down {
+                    flycam.press(motion, shift);
+                } else {
+                    flycam.release(motion);
+                }
+            } else if down && key == Key::Escape {
+                break 'frames;
+            } else if down && is_capture_key(key) && capture_tx.send(flycam.camera).is_ok() {
+                captures_pending += 1;
+            }
+        }
+        let active = window.is_active();
+        if was_active && !active {
+            // Key releases go to whichever window has the focus now.
+            flycam.release_all();
+            shift = false;
+        }
+        was_active = active;
+        flycam.advance(dt, shift);
+
+        // Finished work.
+        while let Ok(frame) = frame_rx.try_recv() {
+            busy = false;
+            let (w, h) = (frame.image.width as u64, frame.image.height as u64);
+            refiner.observe(w * h, frame.stats.elapsed);
+            fps.tick(Instant::now());
+            shown = Some(frame);
+            buffer_size = (0, 0); // present it
+        }
+        while let Ok(done) = capture_rx.try_recv() {
+            captures_pending = captures_pending.saturating_sub(1);
+            capture_status = match done.result {
+                Ok(path) => format!(
+                    "saved {} ({:.2} s)",
+                    path.display(),
+                    done.elapsed.as_secs_f64()
+                ),
+                Err(e) => format!("capture FAILED: {e}"),
+            };
+        }
+
+        // Next frame, if the worker is idle: the current camera, coarse if it moved,
+        // finer if it did not.
+        let (ww, wh) = window.get_size();
+        let (ww, wh) = (ww.max(1) as u32, wh.max(1) as u32);
+        if !busy {
+            let next = match submitted {
+                Some(job) if job.camera == flycam.camera && (job.width, job.height) == (ww, wh) => {
+                    (job.divisor > 1).then(|| Job {
+                        divisor: Refiner::refine(job.divisor),
+                        ..job
+                    })
+                }
+                _ => Some(Job {
+                    camera: flycam.camera,
+                    width: ww,
+                    height: wh,
+                    divisor: refiner.moving_divisor(ww, wh),
+                }),
+            };
+            if let Some(job) = next {
+                if job_tx.send(job).is_err() {
+                    break 'frames; // the worker died; its panic is reported on join
+                }
+                busy = true;
+                submitted = Some(job);
+            }
+        }
+
+        // Title, a few times a second.
+        if now.duration_since(last_title) > Duration::from_millis(250) {
+            last_title = now;
+            let c = &flycam.camera;
+            let mut t = format!("octaray - {}", config.profile.name);
+            match (&shown, fps.fps()) {
+                (Some(f), Some(rate)) if busy || f.job.divisor > 1 => {
+                    let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
+                    t += &format!(
+                        " - {rate:.1} fps, {:.1} Mrays/s, 1/{} res",
+                        f.stats.total_rays() as f64 / 1e6 / secs,
+                        f.job.divisor
+                    );
+                }
+                (Some(f), _) => {
+                    let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
+                    t += &format!(
+                        " - still, full res in {:.0} ms, {:.1} Mrays/s",
+                        secs * 1e3,
+                        f.stats.total_rays() as f64 / 1e6 / secs
+                    );
+                }
+                (None, _) => t += " - rendering",
+            }
+            t += &format!(" - eye {} look {}", fmt_vec(c.eye), fmt_look(c.look));
+            if captures_pending > 0 {
+                t += &format!(" - capturing ({captures_pending})...");
+            } else if !capture_status.is_empty() {
+                t += &format!(" - {capture_status}");
+            }
+            t += &format!(" - {KEY_HELP}");
+            if t != title {
+                window.set_title(&t);
+                title = t;
+            }
+        }
+
+        // Present.
+        let size = (ww as usize, wh as usize);
+        let presented = match &shown {
+            Some(frame) if size != buffer_size => {
+                present_into(&frame.image, size.0, size.1, &mut buffer);
+                buffer_size = size;
+                window.update_with_buffer(&buffer, size.0, size.1).is_ok()
+            }
+            _ => false,
+        };
+        if !presented {
+            window.update();
+        }
+    }
+
+    drop(window);
+    drop(job_tx);
+    drop(capture_tx);
+    if captures_pending > 0 {
+        eprintln!("octaray: finishing {captures_pending} capture(s)...");
+    }
+    // A panic in a worker has been printed already; the captures before it are on disk.
+    let _ = capture_thread.join();
+    let _ = render_thread.join();
+    Ok(())
+}
+
+fn fmt_look(v: DVec3) -> String {
+    format!("({:.2}, {:.2}, {:.2})", v.x, v.y, v.z)
+}
+
+/// The benchmark's flight: an orbit of the scene's origin, 3° per frame (the rate of a
+/// held turn key), radius 141 (the default eye's distance from the z axis), bobbing
+/// between heights 30 and 70, looking at (0, 0, 10).
+pub fn flight_camera(frame: u32) -> Camera {
+    let start = 45f64.to_radians();
+    let theta = start + (3.0 * frame as f64).to_radians();
+    let r = 100.0 * std::f64::consts::SQRT_2;
+    let eye = DVec3::new(
+        r * theta.cos(),
+        r * theta.sin(),
+        50.0 + 20.0 * (2.0 * theta).sin(),
+    );
+    Camera::look_at(eye, DVec3::new(0.0, 0.0, 10.0), DVec3::Z, 80.0)
+        .expect("the orbit never looks straight down")
+}
+
+/// One line of the benchmark's table.
+#[derive(Clone, Debug)]
+pub struct BenchLine {
+    pub label: String,
+    pub frames: u32,
+    pub seconds: f64,
+    pub rays: u64,
+    /// Smallest and largest divisor used.
+    pub divisors: (u32, u32),
+}
+
+impl BenchLine {
+    pub fn fps(&self) -> f64 {
+        self.frames as f64 / self.seconds.max(1e-9)
+    }
+}
+
+/// What [`benchmark`] measured.
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    pub size: Size,
+    pub profile: String,
+    pub threads: usize,
+    pub lines: Vec<BenchLine>,
+    /// Seconds from the last moving frame to the full-resolution frame (worst of the
+    /// stops measured), and the divisors of the passes in between.
+    pub stop_to_full: f64,
+    pub stop_passes: Vec<u32>,
+}
+
+impl fmt::Display for BenchReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "viewer benchmark: {}, profile {}, {} threads, flight: orbit of the origin at 3 deg/frame",
+            self.size, self.profile, self.threads
+        )?;
+        writeln!(
+            f,
+            "  {:<34} {:>7} {:>9} {:>10} {:>10} {:>11}",
+            "mode", "frames", "seconds", "fps", "ms/frame", "Mrays/s"
+        )?;
+        for l in &self.lines {
+            writeln!(
+                f,
+                "  {:<34} {:>7} {:>9.3} {:>10.1} {:>10.2} {:>11.2}",
+                l.label,
+                l.frames,
+                l.seconds,
+                l.fps(),
+                1e3 * l.seconds / l.frames.max(1) as f64,
+                l.rays as f64 / 1e6 / l.seconds.max(1e-9)
+            )?;
+        }
+        let passes: Vec<String> = self.stop_passes.iter().map(|d| format!("1/{d}")).collect();
+        let passes = if passes.is_empty() {
+            "none: moving frames are already full resolution".to_string()
+        } else {
+            format!("passes {}", passes.join(", "))
+        };
+        write!(
+            f,
+            "  stop -> full resolution: {:.3} s ({passes}; worst of 3 stops)",
+            self.stop_to_full
+        )
+    }
+}
+
+/// Renders `frames` frames along [`flight_camera`] twice — at full resolution, then with
+/// the viewer's moving-resolution policy — and measures how long the viewer takes to reach
+/// full resolution after stopping. Frames are scaled up to the window as the viewer does;
+/// no window is opened.
+pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> BenchReport {
+    let mut buffer = Vec::new();
+    let (w, h) = (size.width, size.height);
+    let mut refiner = Refiner::default();
+    let mut fly = |label: &str, adaptive: bool, refiner: &mut Refiner| {
+        let mut rays = 0;
+        let mut divisors = (u32::MAX, 0);
+        let start = Instant::now();
+        for i in 0..frames {
+            let divisor = if adaptive {
+                refiner.moving_divisor(w, h)
+            } else {
+                1
+            };
+            let job = Job {
+                camera: flight_camera(i),
+                width: w,
+                height: h,
+                divisor,
+            };
+            let frame = render_job(scene, profile, &job);
+            present_into(&frame.image, w as usize, h as usize, &mut buffer);
+            let (pw, ph) = preview_size(w, h, divisor);
+            refiner.observe(pw as u64 * ph as u64, frame.stats.elapsed);
+            rays += frame.stats.total_rays();
+            divisors = (divisors.0.min(divisor), divisors.1.max(divisor));
+        }
+        BenchLine {
+            label: label.to_string(),
+            frames,
+            seconds: start.elapsed().as_secs_f64(),
+            rays,
+            divisors,
+        }
+    };
+    let full = fly("moving, full resolution", false, &mut refiner);
+    let mut adaptive = fly("moving, adaptive", true, &mut refiner);
+    adaptive.label = format!(
+        "moving, adaptive (1/{}..1/{} res)",
+        adaptive.divisors.0, adaptive.divisors.1
+    );
+
+    // Stops: the camera halts right after a moving frame at the divisor the policy
+    // picks; the viewer then refines d/2, d/4, ..., 1 at the still camera. Measured from
+    // the moving frame on screen to the full-resolution frame on screen. (In the window, a
+    // moving frame still in flight when the camera stops adds at most one moving frame,
+    // about MOVING_FRAME_S.)
+    let mut stop_to_full: f64 = 0.0;
+    let mut stop_passes = Vec::new();
+    for k in 0..3 {
+        let camera = flight_camera(frames + 40 * k);
+        let mut d = refiner.moving_divisor(w, h);
+        let mut passes = Vec::new();
+        let start = Instant::now();
+        while d > 1 {
+            d = Refiner::refine(d);
+            let job = Job {
+                camera,
+                width: w,
+                height: h,
+                divisor: d,
+            };
+            let frame = render_job(scene, profile, &job);
+            present_into(&frame.image, w as usize, h as usize, &mut buffer);
+            passes.push(d);
+        }
+        stop_to_full = stop_to_full.max(start.elapsed().as_secs_f64());
+        stop_passes = passes;
+    }
+    BenchReport {
+        size,
+        profile: profile.name.clone(),
+        threads: rayon::current_num_threads(),
+        lines: vec![full, adaptive],
+        stop_to_full,
+        stop_passes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_map_to_the_assignments_motions() {
+        let cases = [
+            (Key::Up, Motion::Forward),
+            (Key::Down, Motion::Backward),
+            (Key::Left, Motion::Left),
+            (Key::Right, Motion::Right),
+            (Key::PageUp, Motion::Up),
+            (Key::PageDown, Motion::Down),
+            (Key::Key1, Motion::LookLeft),
+            (Key::Key2, Motion::LookRight),
+            (Key::Key3, Motion::LookUp),
+            (Key::Key4, Motion::LookDown),
+            (Key::Key5, Motion::TiltClockwise),
+            (Key::Key6, Motion::TiltCounterclockwise),
+            (Key::NumPad5, Motion::TiltClockwise),
+        ];
+        for (key, motion) in cases {
+            assert_eq!(motion_for_key(key), Some(motion), "{key:?}");
+        }
+        for key in [Key::Key0, Key::Escape, Key::LeftShift, Key::A] {
+            assert_eq!(motion_for_key(key), None, "{key:?}");
+        }
+        assert!(is_capture_key(Key::Key0) && is_capture_key(Key::NumPad0));
+    }
+
+    #[test]
+    fn size_parses_and_rejects() {
+        assert_eq!(
+            "768x512".parse::<Size>(),
+            Ok(Size {
+                width: 768,
+                height: 512
+            })
+        );
+        for bad in ["768", "0x10", "x", "10x-1", "axb", "10x10x10"] {
+            assert!(bad.parse::<Size>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn refiner_coarsens_for_slow_frames_and_halves_to_one() {
+        let mut r = Refiner::default();
+        assert_eq!(r.moving_divisor(768, 768), 4);
+        // 1 µs per pixel: 768² would take 0.59 s; 1/5 res (154²) takes 24 ms.
+        r.observe(1_000_000, Duration::from_secs(1));
+        assert_eq!(r.moving_divisor(768, 768), 5);
+        // Very cheap frames: full resolution.
+        let mut fast = Refiner::default();
+        fast.observe(1_000_000, Duration::from_millis(1));
+        assert_eq!(fast.moving_divisor(768, 768), 1);
+        // Very slow frames: the coarsest.
+        let mut slow = Refiner::default();
+        slow.observe(1, Duration::from_secs(1));
+        assert_eq!(slow.moving_divisor(768, 768), MAX_DIVISOR);
+        let chain: Vec<u32> =
+            std::iter::successors(Some(5), |&d| (d > 1).then(|| Refiner::refine(d))).collect();
+        assert_eq!(chain, [5, 2, 1]);
+    }
+
+    #[test]
+    fn preview_is_scaled_up_by_nearest_pixel() {
+        let mut img = Framebuffer::new(2, 1);
+        img.pixels = vec![[255, 0, 0], [0, 0, 255]];
+        let mut buf = Vec::new();
+        present_into(&img, 4, 2, &mut buf);
+        let red = 0xff0000;
+        let blue = 0x0000ff;
+        assert_eq!(buf, [red, red, blue, blue, red, red, blue, blue]);
+        assert_eq!(preview_size(768, 768, 5), (154, 154));
+        assert_eq!(preview_size(3, 1, 16), (1, 1));
+    }
+
+    #[test]
+    fn flight_stays_orthonormal_and_moves() {
+        let a = flight_camera(0);
+        let b = flight_camera(1);
+        assert!(flycam::frame_error(&a) < 1e-14);
+        assert!((a.eye - b.eye).length() > 1.0);
+    }
+}

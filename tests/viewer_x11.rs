@@ -1,0 +1,221 @@
+//! The viewer through a real X server: starts Xvfb, opens `octaray view` on it, types keys
+//! with xdotool as a user would, and checks the captures on disk against `octaray render`.
+//!
+//! Needs the Debian packages `xvfb` and `xdotool` (.ci/run installs them); without them the
+//! test prints why and passes without asserting anything.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::thread::sleep;
+use std::time::{Duration, Instant};
+
+use octaray::output::Framebuffer;
+use octaray::scene::{Camera, Scene};
+use octaray::viewer::flycam::{self, Motion};
+
+const BIN: &str = env!("CARGO_BIN_EXE_octaray");
+/// The scene's resolution in this test (the given scene, made small to render quickly).
+const PIXELS: u32 = 96;
+
+fn on_path(tool: &str) -> bool {
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(tool).is_file()))
+}
+
+/// Kills and reaps a child process of this test when dropped.
+struct ChildGuard(Child);
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn wait_for(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !done() {
+        assert!(start.elapsed() < timeout, "timed out waiting for {what}");
+        sleep(Duration::from_millis(50));
+    }
+}
+
+/// Starts Xvfb on a free display number; returns the guard and the DISPLAY value.
+fn start_xvfb() -> (ChildGuard, String) {
+    let n = (90..200)
+        .find(|n| {
+            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        })
+        .expect("a free X display number");
+    let display = format!(":{n}");
+    let child = Command::new("Xvfb")
+        .args([&display, "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("starting Xvfb");
+    let guard = ChildGuard(child);
+    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
+    wait_for("Xvfb's socket", Duration::from_secs(20), || socket.exists());
+    (guard, display)
+}
+
+fn xdotool(display: &str, args: &[&str]) -> Output {
+    Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .expect("running xdotool")
+}
+
+/// Presses and releases one key in the focused window. (minifb ignores synthetic events
+/// sent with `key --window`, so the window must have the focus.)
+fn key(display: &str, name: &str) {
+    let out = xdotool(display, &["key", name]);
+    assert!(out.status.success(), "xdotool key {name}: {out:?}");
+}
+
+fn render(scene: &Path, camera: &Camera, out: &Path) -> Framebuffer {
+    let v = |p: glam::DVec3| format!("{:?},{:?},{:?}", p.x, p.y, p.z);
+    let status = Command::new(BIN)
+        .arg("render")
+        .arg(scene)
+        .args(["--profile", "reference", "--eye", &v(camera.eye)])
+        .arg("--output")
+        .arg(out)
+        .stderr(Stdio::null())
+        .status()
+        .expect("running octaray render");
+    assert!(status.success());
+    Framebuffer::load(out).expect("reading the rendered image")
+}
+
+fn load_when_present(path: &Path) -> Framebuffer {
+    // Captures appear whole (temp file, then a hard link to the final name).
+    wait_for(
+        &path.display().to_string(),
+        Duration::from_secs(300),
+        || path.exists(),
+    );
+    Framebuffer::load(path).expect("reading the capture")
+}
+
+#[test]
+fn keys_in_a_real_window_capture_and_move_the_view() {
+    let missing: Vec<&str> = ["Xvfb", "xdotool"]
+        .into_iter()
+        .filter(|t| !on_path(t))
+        .collect();
+    if !missing.is_empty() {
+        eprintln!(
+            "skipped: {} not installed (apt-get install xvfb xdotool); nothing was checked",
+            missing.join(" and ")
+        );
+        return;
+    }
+
+    let dir = std::env::temp_dir().join(format!("octaray-viewer-x11-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).expect("a temporary directory");
+    // The given scene at a small resolution: line 2 of the file is `pixels`.
+    let mut lines: Vec<&str> = Scene::GIVEN.lines().collect();
+    assert_eq!(
+        lines[1].trim(),
+        "768",
+        "the given scene's second line is its size"
+    );
+    let pixels = PIXELS.to_string();
+    lines[1] = &pixels;
+    let scene = dir.join("scene.txt");
+    fs::write(&scene, lines.join("\n")).expect("writing the scene");
+
+    let (_xvfb, display) = start_xvfb();
+    let log = fs::File::create(dir.join("viewer.log")).expect("a log file");
+    let mut viewer = ChildGuard(
+        Command::new(BIN)
+            .arg("view")
+            .arg(&scene)
+            .args(["--profile", "reference", "--size", "200x150", "--out-dir"])
+            .arg(&dir)
+            .env("DISPLAY", &display)
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .expect("starting octaray view"),
+    );
+
+    let mut window = String::new();
+    wait_for("the viewer's window", Duration::from_secs(60), || {
+        let out = xdotool(&display, &["search", "--name", "^octaray"]);
+        window = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .next()
+            .unwrap_or("")
+            .to_string();
+        !window.is_empty()
+    });
+    let out = xdotool(&display, &["windowfocus", "--sync", &window]);
+    assert!(out.status.success(), "xdotool windowfocus: {out:?}");
+
+    // The viewer starts from `octaray render`'s default camera, built the same way.
+    let d = Camera::default();
+    let start = Camera::from_look(d.eye, d.look, d.up, d.fov_y_deg).expect("default camera");
+
+    // 0 captures the current view at the scene's size and the profile's quality.
+    key(&display, "0");
+    let first = load_when_present(&dir.join("Output_11.bmp"));
+    assert_eq!((first.width, first.height), (PIXELS, PIXELS));
+    let want = render(&scene, &start, &dir.join("render_start.bmp"));
+    assert!(
+        first == want,
+        "capture differs from `octaray render` with the same camera and profile"
+    );
+
+    // One tap of Up moves exactly one step forward; the next capture shows it.
+    key(&display, "Up");
+    key(&display, "0");
+    let second = load_when_present(&dir.join("Output_12.bmp"));
+    assert_eq!((second.width, second.height), (PIXELS, PIXELS));
+    assert!(second != first, "moving forward did not change the picture");
+    let mut moved = start;
+    flycam::apply(&mut moved, Motion::Forward, 1.0);
+    let want = render(&scene, &moved, &dir.join("render_moved.bmp"));
+    assert!(
+        second == want,
+        "capture after Up differs from `octaray render --eye {}`",
+        moved.eye
+    );
+
+    // The title bar says where the capture went.
+    let mut title = String::new();
+    wait_for(
+        "the title to name the capture",
+        Duration::from_secs(30),
+        || {
+            let out = xdotool(&display, &["getwindowname", &window]);
+            title = String::from_utf8_lossy(&out.stdout).to_string();
+            title.contains("Output_12.bmp")
+        },
+    );
+    eprintln!("window title: {title}");
+
+    // Esc quits cleanly.
+    key(&display, "Escape");
+    let start_exit = Instant::now();
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().expect("polling the viewer") {
+            break status;
+        }
+        assert!(
+            start_exit.elapsed() < Duration::from_secs(60),
+            "the viewer did not quit on Esc"
+        );
+        sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "viewer exited with {status}");
+    // No other files were written by the viewer than the two captures.
+    assert!(!dir.join("Output_13.bmp").exists());
+    let _ = fs::remove_dir_all(&dir);
+}
