@@ -11,6 +11,7 @@
 //!   (watertight test); equal t ties go to the object listed first in the file.
 
 pub mod floor;
+pub mod prism;
 pub mod quadric;
 pub mod sphere;
 pub mod triangle;
@@ -62,13 +63,7 @@ pub fn intersect_ref(shape: &Shape, ray: &Ray, t_max: f64) -> Option<RefHit> {
         }
         Shape::Triangle { v } => triangle::intersect_ref(v, ray, t_max),
         Shape::Quadric(q) => quadric::intersect_ref(q, ray, t_max).map(RefHit::at),
-        Shape::Prism { v, .. } => prism_faces(v)
-            .iter()
-            .enumerate()
-            .filter_map(|(part, f)| {
-                triangle::intersect_ref(f, ray, t_max).map(|h| RefHit { part, ..h })
-            })
-            .min_by(|a, b| a.t.total_cmp(&b.t)),
+        Shape::Prism { v, .. } => prism::intersect_ref(v, ray, t_max),
         // brute force, like every other object of the reference
         Shape::Mesh(m) => (0..m.triangles.len())
             .filter_map(|part| {
@@ -84,7 +79,7 @@ pub fn surface_ref(shape: &Shape, ray: &Ray, hit: &RefHit) -> SurfacePoint {
         Shape::Sphere { center, radius } => sphere::surface_ref(*center, *radius, ray, hit.t),
         Shape::Triangle { v } => triangle::surface_ref(v, hit),
         Shape::Quadric(q) => quadric::surface_ref(q, ray, hit.t),
-        Shape::Prism { v, .. } => triangle::surface_ref(&prism_faces(v)[hit.part], hit),
+        Shape::Prism { v, .. } => prism::surface_ref(v, hit),
         Shape::Mesh(m) => triangle::surface_ref(&m.triangle(hit.part), hit),
     }
 }

@@ -5,10 +5,12 @@
 //! - [`packet`]: f32, 8-ray packets through a BVH. The fast path and the default.
 //! - [`frame`]: splits a frame into bands of rows over rayon.
 
+pub mod caustic;
 pub mod frame;
 pub mod packet;
 pub mod profile;
 pub mod reference;
+pub mod spectral;
 
 use std::time::Duration;
 
@@ -49,18 +51,21 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Mirror rays.
     pub reflection_rays: u64,
+    /// Rays refracted into or out of glass (one per wavelength after a split).
+    pub refraction_rays: u64,
     pub elapsed: Duration,
 }
 
 impl RenderStats {
     pub fn total_rays(&self) -> u64 {
-        self.primary_rays + self.shadow_rays + self.reflection_rays
+        self.primary_rays + self.shadow_rays + self.reflection_rays + self.refraction_rays
     }
 
     pub fn add(&mut self, o: &RenderStats) {
         self.primary_rays += o.primary_rays;
         self.shadow_rays += o.shadow_rays;
         self.reflection_rays += o.reflection_rays;
+        self.refraction_rays += o.refraction_rays;
     }
 }
 

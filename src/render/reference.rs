@@ -8,16 +8,41 @@
 //! Secondary rays (shadow and mirror) start at the hit point moved just past its
 //! floating-point error bound along the normal ([`offset_ray_origin`]), so they never
 //! re-hit the surface they leave, at any scale.
+//!
+//! Glass (the dispersive prism, spec §6) is the one place where a ray branches. At a
+//! glass hit at level L the colour is
+//!
+//! ```text
+//! clamp( phong + (kr + kt·F)·C_reflected + kt·(1 − F)·C_transmitted , 0, 1)
+//! ```
+//!
+//! with F the exact dielectric Fresnel reflectance (1 under total internal reflection)
+//! and both rays traced at level L + 1: refraction consumes levels like mirror rays, so
+//! level N still gives N − 1 bounces of either kind, and every level still returns a
+//! clamped colour. `kr` keeps its meaning (an extra mirror term, as on every object);
+//! `kt` weighs the Fresnel-split glass transport. The ray is RGB until it meets glass;
+//! there its transmitted part splits into the pixel's 16 wavelengths
+//! ([`Wavelengths`]), each traced monochromatically (its own n(λ) at every later glass
+//! surface) and summed with RGB weights that add up to (1, 1, 1); the reflected part,
+//! the same ray for every wavelength, is traced once with the weighted mean of
+//! kr + kt·F. Branches that could add at most [`GLASS_CUTOFF`] (1/2048, an eighth of
+//! an 8-bit step) to the pixel are not traced; scenes without
+//! glass never branch, never prune and render exactly as before. The light that glass
+//! bends onto other surfaces (the caustic) comes from [`CausticMap`]: every non-glass
+//! surface adds `kd · c ⊙ E_caustic` to its Phong sum. Shadow rays treat glass as
+//! opaque; the light it transmits arrives through the caustic instead.
 
 use glam::DVec3;
 
+use super::caustic::{CausticMap, CausticSettings, PhotonHit, PhotonTracer, glass_of};
 use super::frame::render_bands;
+use super::spectral::{CAMERA_SAMPLES, Wavelengths, glass_interface, nm_to_um};
 use super::{RenderSettings, RenderStats, Rendered};
-use crate::geometry::{self, RefHit, SurfacePoint, floor};
+use crate::geometry::{self, RefHit, SurfacePoint, floor, prism};
 use crate::math::Ray;
 use crate::math::float::offset_ray_origin;
 use crate::output::framebuffer::quantize;
-use crate::scene::{Floor, Material, Scene};
+use crate::scene::{Floor, Material, Scene, Shape};
 
 /// What a ray hit: an object of the scene (by index in file order) or the floor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,14 +58,73 @@ pub struct Found {
     pub hit: RefHit,
 }
 
+/// Glass branches that could add at most this much to a pixel's colour (their path
+/// weight: see `radiance`) are not traced: 1/2048 is an eighth of an 8-bit step.
+pub const GLASS_CUTOFF: f64 = 1.0 / 2048.0;
+
+/// Most nested glass branchings followed on the recursion stack (the heavier branch of
+/// each split continues in a loop, the lighter one recurses).
+const MAX_GLASS_DEPTH: u32 = 64;
+
 /// The reference renderer over one scene.
 pub struct Reference<'a> {
     scene: &'a Scene,
+    /// Per object: its faces and bounding sphere if it is a prism (computed once; the
+    /// same hits as `geometry::intersect_ref`).
+    prisms: Vec<Option<prism::Prepared>>,
+    /// Light bent by glass onto other surfaces; `None` without glass.
+    caustics: Option<CausticMap>,
+    /// Seed of the per-pixel wavelengths.
+    seed: u64,
+}
+
+/// The pixel a camera ray belongs to, and its wavelengths once a ray meets glass.
+struct PixelCtx {
+    x: u32,
+    y: u32,
+    seed: u64,
+    wavelengths: std::cell::OnceCell<Wavelengths>,
+}
+
+impl PixelCtx {
+    fn wavelengths(&self) -> &Wavelengths {
+        self.wavelengths
+            .get_or_init(|| Wavelengths::for_pixel(self.x, self.y, self.seed))
+    }
 }
 
 impl<'a> Reference<'a> {
+    /// The reference over `scene`, with the default caustic settings (the photon pass
+    /// runs here, only if the scene has glass).
     pub fn new(scene: &'a Scene) -> Self {
-        Reference { scene }
+        Self::with_caustics(scene, &CausticSettings::default())
+    }
+
+    /// The reference over `scene`; `settings` sets the photon count, radius and seed.
+    pub fn with_caustics(scene: &'a Scene, settings: &CausticSettings) -> Self {
+        let prisms = scene
+            .objects
+            .iter()
+            .map(|o| match &o.shape {
+                Shape::Prism { v, .. } => Some(prism::Prepared::new(v)),
+                _ => None,
+            })
+            .collect();
+        let mut r = Reference {
+            scene,
+            prisms,
+            caustics: None,
+            seed: settings.seed,
+        };
+        if scene.has_prisms() {
+            r.caustics = CausticMap::build(scene, settings, &r);
+        }
+        r
+    }
+
+    /// The caustic photon map, if the scene has glass that a light reaches.
+    pub fn caustics(&self) -> Option<&CausticMap> {
+        self.caustics.as_ref()
     }
 
     /// The nearest hit with 0 < t < t_max. Ties in t go to the object listed first;
@@ -49,7 +133,7 @@ impl<'a> Reference<'a> {
         let mut best: Option<Found> = None;
         let mut t_best = t_max;
         for (i, object) in self.scene.objects.iter().enumerate() {
-            if let Some(hit) = geometry::intersect_ref(&object.shape, ray, t_best) {
+            if let Some(hit) = self.intersect(i, &object.shape, ray, t_best) {
                 t_best = hit.t;
                 best = Some(Found {
                     target: Target::Object(i),
@@ -73,7 +157,17 @@ impl<'a> Reference<'a> {
                 .scene
                 .objects
                 .iter()
-                .any(|o| geometry::intersect_ref(&o.shape, ray, t_max).is_some())
+                .enumerate()
+                .any(|(i, o)| self.intersect(i, &o.shape, ray, t_max).is_some())
+    }
+
+    /// Object `i` against `ray`: prisms through their prepared faces, every other kind
+    /// through `geometry::intersect_ref`.
+    fn intersect(&self, i: usize, shape: &Shape, ray: &Ray, t_max: f64) -> Option<RefHit> {
+        match &self.prisms[i] {
+            Some(p) => p.intersect_ref(ray, t_max),
+            None => geometry::intersect_ref(shape, ray, t_max),
+        }
     }
 
     /// Surface record, colour and material at a hit.
@@ -91,32 +185,167 @@ impl<'a> Reference<'a> {
         }
     }
 
-    /// The colour seen along a camera ray (traced at level 1), each channel in [0, 1].
+    /// The colour seen along a camera ray (traced at level 1), each channel in [0, 1],
+    /// with the wavelengths of pixel (0, 0) should it meet glass.
+    pub fn trace(&self, camera_ray: &Ray, stats: &mut RenderStats) -> DVec3 {
+        self.trace_pixel(camera_ray, 0, 0, stats)
+    }
+
+    /// The colour seen along a camera ray of pixel (x, y) (its wavelengths, if it meets
+    /// glass, are a hash of the pixel and the seed).
+    pub fn trace_pixel(&self, camera_ray: &Ray, x: u32, y: u32, stats: &mut RenderStats) -> DVec3 {
+        let px = PixelCtx {
+            x,
+            y,
+            seed: self.seed,
+            wavelengths: std::cell::OnceCell::new(),
+        };
+        self.radiance(*camera_ray, 1, None, 1.0, 0, &px, stats)
+    }
+
+    /// The colour along `ray` traced at `level`: RGB (`lambda` None) or one wavelength
+    /// (nm). `weight` bounds what the colour of this ray can add to the pixel (the
+    /// product of the branch weights from the camera, times the wavelength's largest RGB
+    /// weight on monochromatic paths); `depth` is the recursion depth.
     ///
     /// Reflection is a chain (one mirror ray per hit), so it is followed with a loop,
-    /// not recursion: any recursion level runs in constant stack. The per-level
-    /// clamping of the spec is applied on the way back, from the deepest hit up.
-    pub fn trace(&self, camera_ray: &Ray, stats: &mut RenderStats) -> DVec3 {
-        let mut chain: Vec<(DVec3, f64)> = Vec::new();
-        let mut ray = *camera_ray;
-        let mut level = 1;
+    /// not recursion: any recursion level runs in constant stack. At glass the heavier
+    /// branch continues the loop and the lighter one recurses. The per-level clamping of
+    /// the spec is applied on the way back, from the deepest hit up.
+    #[allow(clippy::too_many_arguments)]
+    fn radiance(
+        &self,
+        mut ray: Ray,
+        mut level: u32,
+        lambda: Option<f64>,
+        mut weight: f64,
+        depth: u32,
+        px: &PixelCtx,
+        stats: &mut RenderStats,
+    ) -> DVec3 {
+        // per level: the local colour (with any branched-off light) and the weight of
+        // the colour of the next level in the chain
+        let mut chain: Vec<(DVec3, DVec3)> = Vec::new();
         while let Some(found) = self.nearest(&ray, f64::INFINITY) {
             let (mut surf, color, m) = self.surface(&ray, &found);
+            let outward = surf.normal; // unflipped: prism faces are wound outwards
             // every normal is flipped to face the incoming ray
             if surf.normal.dot(ray.dir) > 0.0 {
                 surf.normal = -surf.normal;
             }
-            let local = self.phong(&surf, color, &m, -ray.dir, stats);
-            chain.push((local, m.kr));
-            // level N gives N − 1 bounces; kr = 0 would add exactly nothing
-            if level >= self.scene.recursion_level || m.kr == 0.0 {
+            let glass = match found.target {
+                Target::Object(i) => glass_of(&self.scene.objects[i].shape),
+                Target::Floor => None,
+            };
+            let mut local = self.phong(&surf, color, &m, -ray.dir, stats);
+            let Some(g) = glass else {
+                if let Some(map) = &self.caustics {
+                    local += map.irradiance(surf.point, surf.normal) * m.kd * color;
+                }
+                chain.push((local, DVec3::splat(m.kr)));
+                // level N gives N − 1 bounces; kr = 0 would add exactly nothing
+                if level >= self.scene.recursion_level || m.kr == 0.0 {
+                    break;
+                }
+                let n = surf.normal;
+                let dir = (ray.dir - n * (2.0 * ray.dir.dot(n))).normalize();
+                ray = Ray::new(offset_ray_origin(surf.point, surf.err, n, dir), dir);
+                stats.reflection_rays += 1;
+                level += 1;
+                weight *= m.kr;
+                continue;
+            };
+            // glass: reflected and transmitted rays, both at the next level
+            if level >= self.scene.recursion_level {
+                chain.push((local, DVec3::ZERO));
                 break;
             }
-            let n = surf.normal;
-            let dir = (ray.dir - n * (2.0 * ray.dir.dot(n))).normalize();
-            ray = Ray::new(offset_ray_origin(surf.point, surf.err, n, dir), dir);
-            stats.reflection_rays += 1;
-            level += 1;
+            let next = level + 1;
+            let spawn =
+                |dir: DVec3| Ray::new(offset_ray_origin(surf.point, surf.err, outward, dir), dir);
+            let (side, main_weight, main_dir) = match lambda {
+                None => {
+                    // RGB meets glass: the transmitted light splits into wavelengths
+                    let wl = px.wavelengths();
+                    let mut side = DVec3::ZERO;
+                    let mut reflect_weight = DVec3::ZERO;
+                    let mut reflected = ray.dir;
+                    for i in 0..CAMERA_SAMPLES {
+                        let n = g.index(nm_to_um(wl.lambda[i]));
+                        let f = glass_interface(ray.dir, outward, n);
+                        reflected = f.reflected;
+                        reflect_weight += wl.weight[i] * (m.kr + g.kt * f.fresnel);
+                        let wt = g.kt * (1.0 - f.fresnel);
+                        // what this wavelength's path can add to the pixel, at most
+                        let reach = weight * wt * wl.weight[i].max_element();
+                        if let Some(t) = f.transmitted
+                            && reach > GLASS_CUTOFF
+                            && depth < MAX_GLASS_DEPTH
+                        {
+                            stats.refraction_rays += 1;
+                            let c = self.radiance(
+                                spawn(t),
+                                next,
+                                Some(wl.lambda[i]),
+                                reach,
+                                depth + 1,
+                                px,
+                                stats,
+                            );
+                            side += wl.weight[i] * wt * c;
+                        }
+                    }
+                    (side, reflect_weight, reflected)
+                }
+                Some(l) => {
+                    let f = glass_interface(ray.dir, outward, g.index(nm_to_um(l)));
+                    let wr = m.kr + g.kt * f.fresnel;
+                    match f.transmitted {
+                        Some(t) if g.kt * (1.0 - f.fresnel) > 0.0 => {
+                            let wt = g.kt * (1.0 - f.fresnel);
+                            let (main, main_w, other, other_w) = if wt >= wr {
+                                (t, wt, f.reflected, wr)
+                            } else {
+                                (f.reflected, wr, t, wt)
+                            };
+                            let mut side = DVec3::ZERO;
+                            if other_w * weight > GLASS_CUTOFF && depth < MAX_GLASS_DEPTH {
+                                if other == t {
+                                    stats.refraction_rays += 1;
+                                } else {
+                                    stats.reflection_rays += 1;
+                                }
+                                side = other_w
+                                    * self.radiance(
+                                        spawn(other),
+                                        next,
+                                        lambda,
+                                        weight * other_w,
+                                        depth + 1,
+                                        px,
+                                        stats,
+                                    );
+                            }
+                            (side, DVec3::splat(main_w), main)
+                        }
+                        _ => (DVec3::ZERO, DVec3::splat(wr), f.reflected),
+                    }
+                }
+            };
+            chain.push((local + side, main_weight));
+            let w = main_weight.max_element();
+            if w * weight <= GLASS_CUTOFF {
+                break;
+            }
+            // a transmitted ray goes on through the surface, a reflected one turns back
+            if (main_dir.dot(outward) > 0.0) == (ray.dir.dot(outward) > 0.0) {
+                stats.refraction_rays += 1;
+            } else {
+                stats.reflection_rays += 1;
+            }
+            ray = spawn(main_dir);
+            level = next;
+            weight *= w;
         }
         chain
             .iter()
@@ -185,16 +414,44 @@ impl<'a> Reference<'a> {
     }
 }
 
+impl PhotonTracer for Reference<'_> {
+    fn nearest(&self, ray: &Ray) -> Option<PhotonHit> {
+        let found = Reference::nearest(self, ray, f64::INFINITY)?;
+        let (s, _, _) = self.surface(ray, &found);
+        Some(PhotonHit {
+            t: found.hit.t,
+            point: s.point,
+            normal: s.normal,
+            err: s.err,
+            object: match found.target {
+                Target::Object(i) => Some(i),
+                Target::Floor => None,
+            },
+        })
+    }
+}
+
 /// Renders a frame on the reference path: one ray through each pixel centre.
 pub fn render(scene: &Scene, settings: &RenderSettings) -> Rendered {
+    render_with(scene, settings, &CausticSettings::default())
+}
+
+/// [`render`] with explicit caustic settings (photon count, radius, seed). The photon
+/// pass (only for scenes with glass) runs before the frame and is not in
+/// `stats.elapsed`.
+pub fn render_with(
+    scene: &Scene,
+    settings: &RenderSettings,
+    caustic: &CausticSettings,
+) -> Rendered {
     let grid = settings.camera.pixel_grid(settings.width, settings.height);
-    let tracer = Reference::new(scene);
+    let tracer = Reference::with_caustics(scene, caustic);
     let width = settings.width;
     render_bands(settings, 1, |row, pixels| {
         let mut stats = RenderStats::default();
         for (i, px) in pixels.iter_mut().enumerate() {
             let ray = Ray::new(grid.eye, grid.direction(i as f64, row as f64));
-            let c = tracer.trace(&ray, &mut stats);
+            let c = tracer.trace_pixel(&ray, i as u32, row, &mut stats);
             *px = [quantize(c.x), quantize(c.y), quantize(c.z)];
         }
         stats.primary_rays += width as u64;
