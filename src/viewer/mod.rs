@@ -14,7 +14,22 @@
 //! fraction 1/d of the window's resolution expected to take at most [`MOVING_FRAME_S`]; once
 //! the camera is still, d halves every frame until the full resolution is reached.
 //!
-//! [`benchmark`] runs the same policy along a scripted flight without a window.
+//! [`benchmark`] runs the same policy along a scripted flight without a window
+//! (`octaray view --frames 120`).
+//!
+//! Without a display (Debian packages xvfb, xdotool, imagemagick), as in
+//! `tests/viewer_x11.rs` and for `docs/viewer.png`:
+//! ```text
+//! Xvfb :77 -screen 0 800x800x24 -nolisten tcp &
+//! export DISPLAY=:77
+//! octaray view --out-dir /tmp & sleep 3
+//! xdotool windowfocus --sync "$(xdotool search --name '^octaray' | head -1)"
+//! xdotool key 0                      # capture: /tmp/Output_11.bmp
+//! xdotool keydown 1; sleep 0.5       # hold "look left": reduced resolution
+//! import -window root moving.png; xdotool keyup 1
+//! xdotool key Escape
+//! ```
+//! (minifb ignores events sent with `xdotool key --window`: focus the window instead.)
 
 pub mod flycam;
 
@@ -498,16 +513,8 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
             last_title = now;
             let c = &flycam.camera;
             let mut t = format!("octaray - {}", config.profile.name);
-            match (&shown, fps.fps()) {
-                (Some(f), Some(rate)) if busy || f.job.divisor > 1 => {
-                    let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
-                    t += &format!(
-                        " - {rate:.1} fps, {:.1} Mrays/s, 1/{} res",
-                        f.stats.total_rays() as f64 / 1e6 / secs,
-                        f.job.divisor
-                    );
-                }
-                (Some(f), _) => {
+            match &shown {
+                Some(f) if !busy && f.job.divisor == 1 => {
                     let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
                     t += &format!(
                         " - still, full res in {:.0} ms, {:.1} Mrays/s",
@@ -515,7 +522,16 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
                         f.stats.total_rays() as f64 / 1e6 / secs
                     );
                 }
-                (None, _) => t += " - rendering",
+                Some(f) => {
+                    let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
+                    let rate = fps.fps().map_or_else(|| "-".into(), |r| format!("{r:.1}"));
+                    t += &format!(
+                        " - {rate} fps, {:.1} Mrays/s, 1/{} res",
+                        f.stats.total_rays() as f64 / 1e6 / secs,
+                        f.job.divisor
+                    );
+                }
+                None => t += " - rendering",
             }
             t += &format!(" - eye {} look {}", fmt_vec(c.eye), fmt_look(c.look));
             if captures_pending > 0 {
