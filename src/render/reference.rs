@@ -267,6 +267,13 @@ impl<'a> Reference<'a> {
                 None => {
                     // RGB meets glass: the transmitted light splits into wavelengths
                     let wl = px.wavelengths();
+                    // one bound for every wavelength of the pixel, so that pruning never
+                    // treats wavelengths differently where the glass does not
+                    let reach_w = wl
+                        .weight
+                        .iter()
+                        .map(|w| w.max_element())
+                        .fold(0.0, f64::max);
                     let mut side = DVec3::ZERO;
                     let mut reflect_weight = DVec3::ZERO;
                     let mut reflected = ray.dir;
@@ -277,7 +284,7 @@ impl<'a> Reference<'a> {
                         reflect_weight += wl.weight[i] * (m.kr + g.kt * f.fresnel);
                         let wt = g.kt * (1.0 - f.fresnel);
                         // what this wavelength's path can add to the pixel, at most
-                        let reach = weight * wt * wl.weight[i].max_element();
+                        let reach = weight * wt * reach_w;
                         if let Some(t) = f.transmitted
                             && reach > GLASS_CUTOFF
                             && depth < MAX_GLASS_DEPTH
