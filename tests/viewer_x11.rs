@@ -5,6 +5,7 @@
 //! test prints why and passes without asserting anything.
 
 use std::fs;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::thread::sleep;
@@ -23,12 +24,23 @@ fn on_path(tool: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(tool).is_file()))
 }
 
-/// Kills and reaps a child process of this test when dropped.
+/// Stops and reaps a child process of this test when dropped: SIGTERM first (so Xvfb
+/// removes its lock and socket files), SIGKILL if it is still there after 5 s.
 struct ChildGuard(Child);
 
 impl Drop for ChildGuard {
     fn drop(&mut self) {
-        let _ = self.0.kill();
+        if let Ok(None) = self.0.try_wait() {
+            let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+            let start = Instant::now();
+            while let Ok(None) = self.0.try_wait() {
+                if start.elapsed() > Duration::from_secs(5) {
+                    let _ = self.0.kill();
+                    break;
+                }
+                sleep(Duration::from_millis(20));
+            }
+        }
         let _ = self.0.wait();
     }
 }
@@ -41,25 +53,49 @@ fn wait_for(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
     }
 }
 
-/// Starts Xvfb on a free display number; returns the guard and the DISPLAY value.
+/// Starts Xvfb on a display number it picks itself (`-displayfd`, so concurrent runs never
+/// share a server); returns the guard and the DISPLAY value once the server is ready.
 fn start_xvfb() -> (ChildGuard, String) {
-    let n = (90..200)
-        .find(|n| {
-            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        })
-        .expect("a free X display number");
-    let display = format!(":{n}");
-    let child = Command::new("Xvfb")
-        .args([&display, "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+            // Without it the server resets when its last client leaves; a client that
+            // connects during the reset (the viewer, right after an xdotool call) fails.
+            "-noreset",
+        ])
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .expect("starting Xvfb");
+    let stdout = child.stdout.take().expect("Xvfb's stdout");
     let guard = ChildGuard(child);
-    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-    wait_for("Xvfb's socket", Duration::from_secs(20), || socket.exists());
-    (guard, display)
+    let mut line = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("reading Xvfb's display number");
+    let n: u32 = line
+        .trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("Xvfb did not start (printed {line:?})"));
+    (guard, format!(":{n}"))
+}
+
+/// Prints the viewer's stderr if the test fails.
+struct LogOnPanic(PathBuf);
+
+impl Drop for LogOnPanic {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            let log = fs::read_to_string(&self.0).unwrap_or_default();
+            eprintln!("--- viewer stderr ---\n{log}---");
+        }
+    }
 }
 
 fn xdotool(display: &str, args: &[&str]) -> Output {
@@ -133,6 +169,7 @@ fn keys_in_a_real_window_capture_and_move_the_view() {
 
     let (_xvfb, display) = start_xvfb();
     let log = fs::File::create(dir.join("viewer.log")).expect("a log file");
+    let _log_on_panic = LogOnPanic(dir.join("viewer.log"));
     let mut viewer = ChildGuard(
         Command::new(BIN)
             .arg("view")
@@ -146,8 +183,12 @@ fn keys_in_a_real_window_capture_and_move_the_view() {
             .expect("starting octaray view"),
     );
 
+    eprintln!("Xvfb on {display}");
     let mut window = String::new();
     wait_for("the viewer's window", Duration::from_secs(60), || {
+        if let Ok(Some(status)) = viewer.0.try_wait() {
+            panic!("the viewer exited with {status} before its window appeared");
+        }
         let out = xdotool(&display, &["search", "--name", "^octaray"]);
         window = String::from_utf8_lossy(&out.stdout)
             .lines()
