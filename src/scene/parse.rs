@@ -515,5 +515,7 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];
     let n = e1.cross(e2).length();
-    !(n > 1e-12 * e1.length() * e2.length())
+    let limit = 1e-12 * e1.length() * e2.length();
+    // NaN (coordinates so large that the cross product overflows) is degenerate too.
+    n.partial_cmp(&limit) != Some(std::cmp::Ordering::Greater)
 }
