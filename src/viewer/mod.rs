@@ -569,7 +569,9 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
     }
     // A panic in a worker has been printed already; the captures before it are on disk.
     let _ = capture_thread.join();
-    let _ = render_thread.join();
+    // The preview worker is not waited for: its frame in flight is no longer wanted, and it
+    // ends when it finds the frame receiver gone (or with the process).
+    drop(render_thread);
     Ok(())
 }
 
