@@ -26,8 +26,9 @@
 //! 4. **Density estimate.** At shading time, [`CausticMap::irradiance`] sums the photons
 //!    within `radius` of the point with the Epanechnikov kernel `2/(πr²)·(1 − d²/r²)`,
 //!    counting only photons that arrive on the side the shading normal faces and lie on a
-//!    surface of the same orientation. The shading adds `kd · c ⊙ E`, like the Phong
-//!    diffuse term.
+//!    surface of the same orientation; where fewer than [`MIN_PHOTONS`] fall inside, the
+//!    estimate is taken at 4× the radius (a second grid over the same photons). The shading adds `kd · c ⊙ E`, like the Phong diffuse
+//!    term.
 //!
 //! Deterministic: every random number is a hash of (seed, photon, bounce); photons are
 //! traced in fixed blocks, so the map does not depend on the thread count.
@@ -65,13 +66,19 @@ pub struct CausticSettings {
     pub seed: u64,
 }
 
+/// Fewest photons a density estimate uses before its radius is widened.
+pub const MIN_PHOTONS: usize = 8;
+
+/// The widened density-estimation radius, in multiples of the base radius.
+pub const WIDENING: f64 = 4.0;
+
 /// Default radius as a fraction of the dispersive object's bounding radius.
 pub const AUTO_RADIUS_FRACTION: f64 = 0.03;
 
 impl Default for CausticSettings {
     fn default() -> Self {
         CausticSettings {
-            photons: 400_000,
+            photons: 100_000,
             radius: None,
             seed: 0,
         }
@@ -157,6 +164,8 @@ pub struct CausticMap {
     radius: f64,
     lo: DVec3,
     hi: DVec3,
+    /// The same photons at [`WIDENING`] times the radius, for sparse regions.
+    wide: Option<Box<CausticMap>>,
     pub stats: CausticStats,
 }
 
@@ -390,8 +399,16 @@ impl CausticMap {
         Some(map)
     }
 
-    /// A map over given photons (sorted into the grid here).
+    /// A map over given photons (sorted into the grid here), with its widened twin.
     pub fn from_photons(photons: Vec<Photon>, radius: f64) -> CausticMap {
+        let wide = CausticMap::grid(photons.clone(), radius * WIDENING);
+        let mut map = CausticMap::grid(photons, radius);
+        map.wide = Some(Box::new(wide));
+        map
+    }
+
+    /// The photons in a grid of cell 2 × `radius`.
+    fn grid(photons: Vec<Photon>, radius: f64) -> CausticMap {
         let size = 2.0 * radius;
         let cell = |p: DVec3| (p / size).floor().as_i64vec3().to_array();
         let mut keyed: Vec<([i64; 3], Photon)> =
@@ -420,6 +437,7 @@ impl CausticMap {
             radius,
             lo: lo - radius,
             hi: hi + radius,
+            wide: None,
             stats: CausticStats::default(),
         }
     }
@@ -434,40 +452,51 @@ impl CausticMap {
 
     /// Irradiance (RGB, in the units of the spec's `Lc·(N·L)`) at `p` on a surface
     /// with unit normal `n` facing the viewer. The caller adds `kd · c ⊙ E`.
+    ///
+    /// Where fewer than [`MIN_PHOTONS`] photons fall within the radius (the faint, sparse
+    /// fringe of a caustic), the estimate is taken at [`WIDENING`] times the radius
+    /// instead: a sparse region then shows a smooth glow, not single-photon speckles.
     pub fn irradiance(&self, p: DVec3, n: DVec3) -> DVec3 {
-        if p.cmplt(self.lo).any() || p.cmpgt(self.hi).any() {
+        let far = self.radius * WIDENING;
+        if p.cmplt(self.lo - far).any() || p.cmpgt(self.hi + far).any() {
             return DVec3::ZERO;
         }
-        let r2 = self.radius * self.radius;
-        // the disc of radius r lies in the 2 × 2 × 2 cells (size 2r) nearest to p
-        let q = p / (2.0 * self.radius);
-        let c = q.floor();
-        let base = c.as_i64vec3();
-        let step = (q - c).cmpge(DVec3::splat(0.5));
-        let lo = [
-            base.x - 1 + step.test(0) as i64,
-            base.y - 1 + step.test(1) as i64,
-            base.z - 1 + step.test(2) as i64,
-        ];
+        let (sum, count) = self.gather(p, n, self.radius);
+        if count >= MIN_PHOTONS {
+            return sum * (2.0 / (std::f64::consts::PI * self.radius * self.radius));
+        }
+        match &self.wide {
+            Some(w) => w.irradiance(p, n),
+            None => sum * (2.0 / (std::f64::consts::PI * self.radius * self.radius)),
+        }
+    }
+
+    /// Epanechnikov-weighted power of the photons within `r` of `p` that arrive on the
+    /// side `n` faces, on a surface of the same orientation, and their number.
+    fn gather(&self, p: DVec3, n: DVec3, r: f64) -> (DVec3, usize) {
+        let r2 = r * r;
+        let size = 2.0 * self.radius;
+        let lo = ((p - r) / size).floor().as_i64vec3();
+        let hi = ((p + r) / size).floor().as_i64vec3();
         let mut sum = DVec3::ZERO;
-        for dz in 0..2 {
-            for dy in 0..2 {
-                for dx in 0..2 {
-                    let key = [lo[0] + dx, lo[1] + dy, lo[2] + dz];
-                    let Some(&(a, b)) = self.cells.get(&key) else {
+        let mut count = 0;
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    let Some(&(a, b)) = self.cells.get(&[x, y, z]) else {
                         continue;
                     };
                     for ph in &self.photons[a as usize..b as usize] {
                         let d2 = ph.position.distance_squared(p);
-                        // the photon must arrive on the lit side, on a surface like this one
                         if d2 < r2 && ph.direction.dot(n) < 0.0 && ph.normal.dot(n).abs() > 0.9 {
                             sum += ph.power * (1.0 - d2 / r2);
+                            count += 1;
                         }
                     }
                 }
             }
         }
-        sum * (2.0 / (std::f64::consts::PI * r2))
+        (sum, count)
     }
 }
 
@@ -586,13 +615,13 @@ mod tests {
                 .map(|p| p.power * (1.0 - p.position.distance_squared(q) / r2))
                 .sum::<DVec3>()
                 * (2.0 / (std::f64::consts::PI * r2));
-            let got = map.irradiance(q, DVec3::Z);
+            let got = map.gather(q, DVec3::Z, 0.7).0 * (2.0 / (std::f64::consts::PI * r2));
             assert!(
                 (got - brute).length() < 1e-9 * (1.0 + brute.length()),
                 "{got} {brute}"
             );
             // from below, the same photons do not count
-            assert_eq!(map.irradiance(q, -DVec3::Z), DVec3::ZERO);
+            assert_eq!(map.gather(q, -DVec3::Z, 0.7).0, DVec3::ZERO);
         }
     }
 }
