@@ -335,8 +335,8 @@ mod tests {
             assert_eq!(c.eye, c0.eye);
             assert!(frame_error(&c) < 1e-15, "{motion:?}");
         }
-        // Look left from the default camera turns towards +x−y... i.e. the view swings
-        // left: the new look has a component along −right.
+        // Thirty steps of look-left is a quarter turn: the default camera, looking along
+        // (−1, −1, 0)/√2, ends up looking along −right = (1, −1, 0)/√2.
         let mut c = c0;
         apply(&mut c, Motion::LookLeft, 30.0);
         assert!((angle_deg(c.look, c0.look) - 90.0).abs() < 1e-9);

@@ -12,7 +12,9 @@
 //!
 //! Resolution ([`Refiner`]): while the camera moves, each frame is rendered at the largest
 //! fraction 1/d of the window's resolution expected to take at most [`MOVING_FRAME_S`]; once
-//! the camera is still, d halves every frame until the full resolution is reached.
+//! the camera is still, d halves every frame until the full resolution is reached. A frame
+//! in flight is not cancelled (renderers take no cancellation token), so a key pressed
+//! during the full-resolution pass shows after that pass: at most one full frame late.
 //!
 //! [`benchmark`] runs the same policy along a scripted flight without a window
 //! (`octaray view --frames 120`).
@@ -20,7 +22,7 @@
 //! Without a display (Debian packages xvfb, xdotool, imagemagick), as in
 //! `tests/viewer_x11.rs` and for `docs/viewer.png`:
 //! ```text
-//! Xvfb :77 -screen 0 800x800x24 -nolisten tcp &
+//! Xvfb :77 -screen 0 800x800x24 -nolisten tcp -noreset &
 //! export DISPLAY=:77
 //! octaray view --out-dir /tmp & sleep 3
 //! xdotool windowfocus --sync "$(xdotool search --name '^octaray' | head -1)"
@@ -115,7 +117,7 @@ impl fmt::Display for Size {
 #[derive(Clone)]
 pub struct ViewConfig {
     pub scene: Arc<Scene>,
-    /// Shown in messages.
+    /// Shown in the title bar (its file name).
     pub scene_name: String,
     /// Renders the preview frames.
     pub profile: Profile,
@@ -437,6 +439,10 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
         config.out_dir.clone(),
     );
 
+    let scene_label = Path::new(&config.scene_name).file_name().map_or_else(
+        || config.scene_name.clone(),
+        |n| n.to_string_lossy().into_owned(),
+    );
     let mut flycam = FlyCam::new(config.camera);
     let mut refiner = Refiner::default();
     let mut fps = FpsMeter::default();
@@ -523,7 +529,7 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
         if now.duration_since(last_title) > Duration::from_millis(250) {
             last_title = now;
             let c = &flycam.camera;
-            let mut t = format!("octaray - {}", config.profile.name);
+            let mut t = format!("octaray - {} - {}", scene_label, config.profile.name);
             match &shown {
                 Some(f) if !busy && f.job.divisor == 1 => {
                     let secs = f.stats.elapsed.as_secs_f64().max(1e-9);
