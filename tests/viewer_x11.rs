@@ -113,12 +113,12 @@ fn key(display: &str, name: &str) {
     assert!(out.status.success(), "xdotool key {name}: {out:?}");
 }
 
-fn render(scene: &Path, camera: &Camera, out: &Path) -> Framebuffer {
+fn render(scene: &Path, profile: &str, camera: &Camera, out: &Path) -> Framebuffer {
     let v = |p: glam::DVec3| format!("{:?},{:?},{:?}", p.x, p.y, p.z);
     let status = Command::new(BIN)
         .arg("render")
         .arg(scene)
-        .args(["--profile", "reference", "--eye", &v(camera.eye)])
+        .args(["--profile", profile, "--eye", &v(camera.eye)])
         .arg("--output")
         .arg(out)
         .stderr(Stdio::null())
@@ -136,6 +136,104 @@ fn load_when_present(path: &Path) -> Framebuffer {
         || path.exists(),
     );
     Framebuffer::load(path).expect("reading the capture")
+}
+
+/// One session of the viewer with `profile`, capturing into `out`: 0, Up, 0, Esc. Each
+/// capture must equal `octaray render` with the same camera and profile, byte for byte
+/// (both paths are deterministic), and the second must differ from the first.
+fn session(display: &str, scene: &Path, profile: &str, out: &Path) {
+    let log = fs::File::create(out.join("viewer.log")).expect("a log file");
+    let _log_on_panic = LogOnPanic(out.join("viewer.log"));
+    let mut viewer = ChildGuard(
+        Command::new(BIN)
+            .arg("view")
+            .arg(scene)
+            .args(["--profile", profile, "--size", "200x150", "--out-dir"])
+            .arg(out)
+            .env("DISPLAY", display)
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .expect("starting octaray view"),
+    );
+
+    let mut window = String::new();
+    wait_for("the viewer's window", Duration::from_secs(60), || {
+        if let Ok(Some(status)) = viewer.0.try_wait() {
+            panic!("the viewer exited with {status} before its window appeared");
+        }
+        let found = xdotool(display, &["search", "--name", "^octaray"]);
+        window = String::from_utf8_lossy(&found.stdout)
+            .lines()
+            .next()
+            .unwrap_or("")
+            .to_string();
+        !window.is_empty()
+    });
+    let focus = xdotool(display, &["windowfocus", "--sync", &window]);
+    assert!(focus.status.success(), "xdotool windowfocus: {focus:?}");
+
+    // The viewer starts from `octaray render`'s default camera, built the same way.
+    let d = Camera::default();
+    let start = Camera::from_look(d.eye, d.look, d.up, d.fov_y_deg).expect("default camera");
+
+    // 0 captures the current view at the scene's size and the profile's quality.
+    key(display, "0");
+    let first = load_when_present(&out.join("Output_11.bmp"));
+    assert_eq!((first.width, first.height), (PIXELS, PIXELS));
+    let want = render(scene, profile, &start, &out.join("render_start.bmp"));
+    assert!(
+        first == want,
+        "{profile}: capture differs from `octaray render` with the same camera and profile"
+    );
+
+    // One tap of Up moves exactly one step forward; the next capture shows it.
+    key(display, "Up");
+    key(display, "0");
+    let second = load_when_present(&out.join("Output_12.bmp"));
+    assert_eq!((second.width, second.height), (PIXELS, PIXELS));
+    assert!(
+        second != first,
+        "{profile}: moving forward did not change the picture"
+    );
+    let mut moved = start;
+    flycam::apply(&mut moved, Motion::Forward, 1.0);
+    let want = render(scene, profile, &moved, &out.join("render_moved.bmp"));
+    assert!(
+        second == want,
+        "{profile}: capture after Up differs from `octaray render --eye {}`",
+        moved.eye
+    );
+
+    // The title bar says where the capture went.
+    let mut title = String::new();
+    wait_for(
+        "the title to name the capture",
+        Duration::from_secs(30),
+        || {
+            let name = xdotool(display, &["getwindowname", &window]);
+            title = String::from_utf8_lossy(&name.stdout).to_string();
+            title.contains("Output_12.bmp")
+        },
+    );
+    eprintln!("{profile}: window title: {title}");
+
+    // Esc quits cleanly.
+    key(display, "Escape");
+    let start_exit = Instant::now();
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().expect("polling the viewer") {
+            break status;
+        }
+        assert!(
+            start_exit.elapsed() < Duration::from_secs(60),
+            "the viewer did not quit on Esc"
+        );
+        sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "viewer exited with {status}");
+    // No other files were written by the viewer than the two captures.
+    assert!(!out.join("Output_13.bmp").exists());
 }
 
 #[test]
@@ -168,95 +266,12 @@ fn keys_in_a_real_window_capture_and_move_the_view() {
     fs::write(&scene, lines.join("\n")).expect("writing the scene");
 
     let (_xvfb, display) = start_xvfb();
-    let log = fs::File::create(dir.join("viewer.log")).expect("a log file");
-    let _log_on_panic = LogOnPanic(dir.join("viewer.log"));
-    let mut viewer = ChildGuard(
-        Command::new(BIN)
-            .arg("view")
-            .arg(&scene)
-            .args(["--profile", "reference", "--size", "200x150", "--out-dir"])
-            .arg(&dir)
-            .env("DISPLAY", &display)
-            .stdout(Stdio::null())
-            .stderr(log)
-            .spawn()
-            .expect("starting octaray view"),
-    );
-
     eprintln!("Xvfb on {display}");
-    let mut window = String::new();
-    wait_for("the viewer's window", Duration::from_secs(60), || {
-        if let Ok(Some(status)) = viewer.0.try_wait() {
-            panic!("the viewer exited with {status} before its window appeared");
-        }
-        let out = xdotool(&display, &["search", "--name", "^octaray"]);
-        window = String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .next()
-            .unwrap_or("")
-            .to_string();
-        !window.is_empty()
-    });
-    let out = xdotool(&display, &["windowfocus", "--sync", &window]);
-    assert!(out.status.success(), "xdotool windowfocus: {out:?}");
-
-    // The viewer starts from `octaray render`'s default camera, built the same way.
-    let d = Camera::default();
-    let start = Camera::from_look(d.eye, d.look, d.up, d.fov_y_deg).expect("default camera");
-
-    // 0 captures the current view at the scene's size and the profile's quality.
-    key(&display, "0");
-    let first = load_when_present(&dir.join("Output_11.bmp"));
-    assert_eq!((first.width, first.height), (PIXELS, PIXELS));
-    let want = render(&scene, &start, &dir.join("render_start.bmp"));
-    assert!(
-        first == want,
-        "capture differs from `octaray render` with the same camera and profile"
-    );
-
-    // One tap of Up moves exactly one step forward; the next capture shows it.
-    key(&display, "Up");
-    key(&display, "0");
-    let second = load_when_present(&dir.join("Output_12.bmp"));
-    assert_eq!((second.width, second.height), (PIXELS, PIXELS));
-    assert!(second != first, "moving forward did not change the picture");
-    let mut moved = start;
-    flycam::apply(&mut moved, Motion::Forward, 1.0);
-    let want = render(&scene, &moved, &dir.join("render_moved.bmp"));
-    assert!(
-        second == want,
-        "capture after Up differs from `octaray render --eye {}`",
-        moved.eye
-    );
-
-    // The title bar says where the capture went.
-    let mut title = String::new();
-    wait_for(
-        "the title to name the capture",
-        Duration::from_secs(30),
-        || {
-            let out = xdotool(&display, &["getwindowname", &window]);
-            title = String::from_utf8_lossy(&out.stdout).to_string();
-            title.contains("Output_12.bmp")
-        },
-    );
-    eprintln!("window title: {title}");
-
-    // Esc quits cleanly.
-    key(&display, "Escape");
-    let start_exit = Instant::now();
-    let status = loop {
-        if let Some(status) = viewer.0.try_wait().expect("polling the viewer") {
-            break status;
-        }
-        assert!(
-            start_exit.elapsed() < Duration::from_secs(60),
-            "the viewer did not quit on Esc"
-        );
-        sleep(Duration::from_millis(50));
-    };
-    assert!(status.success(), "viewer exited with {status}");
-    // No other files were written by the viewer than the two captures.
-    assert!(!dir.join("Output_13.bmp").exists());
+    // The oracle, then the viewer's default path.
+    for profile in ["reference", "fast"] {
+        let out = dir.join(profile);
+        fs::create_dir_all(&out).expect("an output directory");
+        session(&display, &scene, profile, &out);
+    }
     let _ = fs::remove_dir_all(&dir);
 }
