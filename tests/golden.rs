@@ -61,7 +61,10 @@ fn floor_without_lights_shows_ambient_checkerboard() {
             checked += (expect == 102) as u32;
         }
     }
-    assert!(checked > 50, "the floor is visible ({checked} white pixels)");
+    assert!(
+        checked > 50,
+        "the floor is visible ({checked} white pixels)"
+    );
 }
 
 /// A sphere straight ahead of the default camera, lit from the eye: at the centre pixel
@@ -81,9 +84,17 @@ fn phong_terms_at_the_centre_pixel() {
     assert_eq!(render(&scene(&dark), 65).get(32, 32), [51, 26, 13]);
     // A spotlight at the eye aimed away from the sphere contributes nothing; aimed at
     // it, it equals the point light.
-    let spot = |dir: &str| text.replace("  1  100 100 50  1 1 1  0", &format!("  0  1 100 100 50  1 1 1  {dir}  5"));
+    let spot = |dir: &str| {
+        text.replace(
+            "  1  100 100 50  1 1 1  0",
+            &format!("  0  1 100 100 50  1 1 1  {dir}  5"),
+        )
+    };
     assert_eq!(render(&scene(&spot("1 1 0")), 65).get(32, 32), [51, 26, 13]);
-    assert_eq!(render(&scene(&spot("-1 -1 0")), 65).get(32, 32), [255, 128, 64]);
+    assert_eq!(
+        render(&scene(&spot("-1 -1 0")), 65).get(32, 32),
+        [255, 128, 64]
+    );
 }
 
 /// Level 1 shows no reflections; level 2 adds kr times the reflected colour.
@@ -134,7 +145,9 @@ fn compare(actual: &Framebuffer, golden: &Framebuffer) -> Result<(), String> {
     }
     let limit = actual.pixels.len() / 2000;
     if off > limit {
-        return Err(format!("{off} pixels differ (limit {limit}); worst {worst}/255"));
+        return Err(format!(
+            "{off} pixels differ (limit {limit}); worst {worst}/255"
+        ));
     }
     Ok(())
 }
@@ -177,7 +190,9 @@ fn golden_images_of_every_scene() {
 
 #[test]
 fn golden_comparison_detects_a_change() {
-    let s = parse_scene_file(&root().join("scenes/one_sphere.txt")).unwrap().scene;
+    let s = parse_scene_file(&root().join("scenes/one_sphere.txt"))
+        .unwrap()
+        .scene;
     let fb = render(&s, GOLDEN_SIZE);
     let mut changed = fb.clone();
     for p in changed.pixels.iter_mut().take(50) {
@@ -202,7 +217,11 @@ fn default_command_renders_the_given_scene_headless() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let out = run_default(&dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let first = Framebuffer::load(&dir.join("Output_11.bmp")).unwrap();
     assert_eq!((first.width, first.height), (768, 768));
     // It is the given scene from the default camera (spot-check against a small render
@@ -213,9 +232,15 @@ fn default_command_renders_the_given_scene_headless() {
     std::fs::write(dir.join("Output_12.bmp"), b"a user's file").unwrap();
     let out = run_default(&dir);
     assert!(out.status.success());
-    assert_eq!(std::fs::read(dir.join("Output_12.bmp")).unwrap(), b"a user's file");
+    assert_eq!(
+        std::fs::read(dir.join("Output_12.bmp")).unwrap(),
+        b"a user's file"
+    );
     let second = Framebuffer::load(&dir.join("Output_13.bmp")).unwrap();
     assert_eq!(second, first, "deterministic");
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("768x768") && stderr.contains("Output_13.bmp"), "{stderr}");
+    assert!(
+        stderr.contains("768x768") && stderr.contains("Output_13.bmp"),
+        "{stderr}"
+    );
 }

@@ -55,7 +55,10 @@ fn assert_err(text: &str, line: usize, col: usize, field: &str, msg_part: &str) 
     assert_eq!((e.line, e.col), (line, col), "position of {e}");
     assert_eq!(e.field, field, "field of {e}");
     assert!(e.message.contains(msg_part), "message of {e}");
-    assert!(e.to_string().starts_with(&format!("t.txt:{line}:{col}: {field}: ")));
+    assert!(
+        e.to_string()
+            .starts_with(&format!("t.txt:{line}:{col}: {field}: "))
+    );
 }
 
 #[test]
@@ -69,14 +72,38 @@ fn base_scene_is_valid() {
 #[test]
 fn nan_inf_and_overflow_are_rejected() {
     assert_err(&with_line(6, "nan"), 6, 1, "sphere 1: radius", "finite");
-    assert_err(&with_line(5, "0 inf 10"), 5, 3, "sphere 1: center.y", "finite");
-    assert_err(&with_line(5, "0 0 1e400"), 5, 5, "sphere 1: center.z", "finite");
-    assert_err(&with_line(18, "-Infinity 1 1"), 18, 1, "point light 1: color.r", "finite");
+    assert_err(
+        &with_line(5, "0 inf 10"),
+        5,
+        3,
+        "sphere 1: center.y",
+        "finite",
+    );
+    assert_err(
+        &with_line(5, "0 0 1e400"),
+        5,
+        5,
+        "sphere 1: center.z",
+        "finite",
+    );
+    assert_err(
+        &with_line(18, "-Infinity 1 1"),
+        18,
+        1,
+        "point light 1: color.r",
+        "finite",
+    );
 }
 
 #[test]
 fn word_where_a_number_belongs() {
-    assert_err(&with_line(8, "0.4 0.2 abc 0.2"), 8, 9, "sphere 1: specular coefficient", "'abc'");
+    assert_err(
+        &with_line(8, "0.4 0.2 abc 0.2"),
+        8,
+        9,
+        "sphere 1: specular coefficient",
+        "'abc'",
+    );
 }
 
 #[test]
@@ -100,35 +127,77 @@ fn extra_number_is_caught_where_a_keyword_belongs() {
 
 #[test]
 fn unknown_object_kind() {
-    assert_err(&with_line(4, "cube"), 4, 1, "object 1: kind", "unknown object kind 'cube'");
+    assert_err(
+        &with_line(4, "cube"),
+        4,
+        1,
+        "object 1: kind",
+        "unknown object kind 'cube'",
+    );
 }
 
 #[test]
 fn non_positive_radius() {
-    assert_err(&with_line(6, "-5"), 6, 1, "sphere 1: radius", "must be > 0, got -5");
+    assert_err(
+        &with_line(6, "-5"),
+        6,
+        1,
+        "sphere 1: radius",
+        "must be > 0, got -5",
+    );
     assert_err(&with_line(6, "0"), 6, 1, "sphere 1: radius", "must be > 0");
 }
 
 #[test]
 fn negative_clip_dimension() {
-    assert_err(&with_line(12, "0 0 0 0 -1 20"), 12, 9, "general 1: box width", ">= 0");
+    assert_err(
+        &with_line(12, "0 0 0 0 -1 20"),
+        12,
+        9,
+        "general 1: box width",
+        ">= 0",
+    );
 }
 
 #[test]
 fn negative_colour_or_coefficient() {
     assert_err(&with_line(7, "1 -0.5 0"), 7, 3, "sphere 1: color.g", ">= 0");
-    assert_err(&with_line(8, "0.4 -0.2 0.2 0.2"), 8, 5, "sphere 1: diffuse coefficient", ">= 0");
+    assert_err(
+        &with_line(8, "0.4 -0.2 0.2 0.2"),
+        8,
+        5,
+        "sphere 1: diffuse coefficient",
+        ">= 0",
+    );
 }
 
 #[test]
 fn zero_spot_direction() {
-    assert_err(&with_line(22, "0 0 0"), 22, 1, "spot light 1: direction", "non-zero");
+    assert_err(
+        &with_line(22, "0 0 0"),
+        22,
+        1,
+        "spot light 1: direction",
+        "non-zero",
+    );
 }
 
 #[test]
 fn cutoff_outside_0_to_180() {
-    assert_err(&with_line(23, "181"), 23, 1, "spot light 1: cutoff angle", "0..=180");
-    assert_err(&with_line(23, "-1"), 23, 1, "spot light 1: cutoff angle", "0..=180");
+    assert_err(
+        &with_line(23, "181"),
+        23,
+        1,
+        "spot light 1: cutoff angle",
+        "0..=180",
+    );
+    assert_err(
+        &with_line(23, "-1"),
+        23,
+        1,
+        "spot light 1: cutoff angle",
+        "0..=180",
+    );
     for ok in ["0", "90", "180"] {
         assert!(parse_scene(&with_line(23, ok), "t.txt").is_ok());
     }
@@ -138,7 +207,13 @@ fn cutoff_outside_0_to_180() {
 fn pixels_and_counts_must_be_integers_in_range() {
     assert_err(&with_line(2, "0"), 2, 1, "pixels", "1..=");
     assert_err(&with_line(2, "64.5"), 2, 1, "pixels", "integer");
-    assert_err(&with_line(2, "99999999999999999999999"), 2, 1, "pixels", "integer");
+    assert_err(
+        &with_line(2, "99999999999999999999999"),
+        2,
+        1,
+        "pixels",
+        "integer",
+    );
     assert_err(&with_line(1, "-1"), 1, 1, "recursion_level", "0..=");
     assert_err(&with_line(3, "two"), 3, 1, "n_objects", "'two'");
 }
@@ -179,12 +254,20 @@ fn file_without_spotlight_block_notes_it() {
     let text = BASE.split("\n1\n100 100 200").next().unwrap();
     let p = parse_scene(text, "t.txt").unwrap();
     assert!(p.scene.spot_lights.is_empty());
-    assert!(p.warnings.iter().any(|w| w.contains("no spotlights")), "{:?}", p.warnings);
+    assert!(
+        p.warnings.iter().any(|w| w.contains("no spotlights")),
+        "{:?}",
+        p.warnings
+    );
     // A word after the point lights: no spotlights, the rest ignored.
     let text = format!("{text}\nInput explanation 5 6 7");
     let p = parse_scene(&text, "t.txt").unwrap();
     assert!(p.scene.spot_lights.is_empty());
-    assert!(p.warnings.iter().any(|w| w.contains("'Input'")), "{:?}", p.warnings);
+    assert!(
+        p.warnings.iter().any(|w| w.contains("'Input'")),
+        "{:?}",
+        p.warnings
+    );
 }
 
 #[test]
@@ -204,8 +287,16 @@ fn degenerate_primitives_load_with_a_warning() {
                 general 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 1 0 0 0.4 0.2 0.2 0.2 5 0 0";
     let p = parse_scene(text, "d.txt").unwrap();
     assert_eq!(p.scene.objects.len(), 2);
-    assert!(p.warnings.iter().any(|w| w.contains("triangle 1 has zero area")));
-    assert!(p.warnings.iter().any(|w| w.contains("general 1 has all-zero")));
+    assert!(
+        p.warnings
+            .iter()
+            .any(|w| w.contains("triangle 1 has zero area"))
+    );
+    assert!(
+        p.warnings
+            .iter()
+            .any(|w| w.contains("general 1 has all-zero"))
+    );
 }
 
 #[test]
@@ -227,11 +318,16 @@ fn prism_block_parses() {
     let Shape::Prism { glass, .. } = &p.scene.objects[0].shape else {
         panic!("not a prism")
     };
-    assert_eq!((glass.kt, glass.cauchy_a, glass.cauchy_b), (0.9, 1.5046, 0.0042));
+    assert_eq!(
+        (glass.kt, glass.cauchy_a, glass.cauchy_b),
+        (0.9, 1.5046, 0.0042)
+    );
 }
 
 fn scene_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
 }
 
 #[test]
@@ -240,8 +336,7 @@ fn every_committed_scene_parses() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "txt") {
             let text = std::fs::read(&path).unwrap();
-            parse_scene_bytes(&text, &path.display().to_string())
-                .unwrap_or_else(|e| panic!("{e}"));
+            parse_scene_bytes(&text, &path.display().to_string()).unwrap_or_else(|e| panic!("{e}"));
         }
     }
 }
@@ -266,8 +361,15 @@ fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
-    let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
-    assert_eq!(files, vec![std::ffi::OsString::from("bad.txt")], "no output written");
+    let files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        files,
+        vec![std::ffi::OsString::from("bad.txt")],
+        "no output written"
+    );
 
     // A missing file is bad input too.
     let out = Command::new(env!("CARGO_BIN_EXE_octaray"))

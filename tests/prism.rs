@@ -320,3 +320,75 @@ fn caustic_is_deterministic() {
     assert_eq!(pa, b.caustics().unwrap().photons());
     assert_ne!(pa, c.caustics().unwrap().photons());
 }
+
+/// The caustic converges: on a 120 × 120 grid over the spectrum of `scenes/prism.txt`,
+/// the RMS difference from a 3.2M-photon map falls like 1/√N with the photon count N
+/// (same seed family, same radius: what remains is noise, not bias). Prints the table of
+/// docs/prism.md. Slow in the test profile, so run it on demand:
+/// `cargo test --release --test prism -- --ignored --nocapture caustic_noise`
+#[test]
+#[ignore]
+fn caustic_noise_falls_with_photon_count() {
+    let s = parse_scene_file(&root().join("scenes/prism.txt"))
+        .unwrap()
+        .scene;
+    let radius = Some(CausticSettings::default().radius.unwrap_or(0.03 * 29.3)); // the auto radius
+    let grid = |photons: u32, seed: u64| {
+        let t = std::time::Instant::now();
+        let r = Reference::with_caustics(
+            &s,
+            &CausticSettings {
+                photons,
+                radius,
+                seed,
+            },
+        );
+        let build = t.elapsed();
+        let map = r.caustics().unwrap();
+        let e: Vec<DVec3> = (0..120 * 120)
+            .map(|k| {
+                let (i, j) = (k % 120, k / 120);
+                map.irradiance(
+                    DVec3::new(
+                        20.0 + (i as f64 + 0.5) / 6.0,
+                        20.0 + (j as f64 + 0.5) / 6.0,
+                        0.0,
+                    ),
+                    DVec3::Z,
+                )
+            })
+            .collect();
+        (e, build)
+    };
+    let (truth, _) = grid(3_200_000, 99);
+    let peak = truth.iter().map(|e| e.max_element()).fold(0.0, f64::max);
+    let region: Vec<usize> = (0..truth.len())
+        .filter(|&k| truth[k].max_element() > 0.1 * peak)
+        .collect();
+    assert!(
+        region.len() > 500,
+        "the spectrum covers the grid ({})",
+        region.len()
+    );
+    println!("| photons | photon pass | RMS error (region) | relative to peak |");
+    println!("|---:|---:|---:|---:|");
+    let mut errors = Vec::new();
+    for photons in [12_500, 25_000, 50_000, 100_000, 200_000, 400_000] {
+        let (e, build) = grid(photons, 1);
+        let sq: f64 = region
+            .iter()
+            .map(|&k| (e[k] - truth[k]).length_squared() / 3.0)
+            .sum();
+        let rms = (sq / region.len() as f64).sqrt();
+        println!(
+            "| {photons} | {:.0} ms | {rms:.4} | {:.2} % |",
+            build.as_secs_f64() * 1e3,
+            100.0 * rms / peak
+        );
+        errors.push(rms);
+    }
+    // 32× the photons: the noise falls by √32 ≈ 5.7 (allow 3×, since the reference map
+    // has noise of its own)
+    assert!(errors[5] < errors[0] / 3.0, "{errors:?}");
+    assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
+}
