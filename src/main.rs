@@ -29,6 +29,8 @@ struct Cli {
 enum Command {
     /// Render a scene file to BMP or PNG.
     Render(RenderArgs),
+    /// Trace benchmark of ../shared/peers/PROTOCOL.md on an OBJ mesh (packet and single-ray paths).
+    BenchTrace(BenchTraceArgs),
     /// Fly through a scene in a window, ray traced live (keys in the title bar).
     View(ViewArgs),
 }
@@ -79,6 +81,30 @@ struct RenderArgs {
     /// Worker threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
+}
+
+#[derive(Args, Debug)]
+struct BenchTraceArgs {
+    /// OBJ mesh, e.g. torus100k.obj written by ../shared/peers/embree/gen_data.py.
+    mesh: PathBuf,
+    /// Worker threads.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: u32,
+    /// Trace repetitions (the best is reported).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    reps: u32,
+}
+
+fn run_bench_trace(args: &BenchTraceArgs) -> Result<(), Failure> {
+    octaray::bvh::bench::run(
+        &args.mesh,
+        args.threads as usize,
+        args.reps as usize,
+        &mut std::io::stdout(),
+        &mut std::io::stderr(),
+    )
+    .map(|_| ())
+    .map_err(|e| Failure::input(e.to_string()))
 }
 
 fn parse_vec3(s: &str) -> Result<DVec3, String> {
@@ -243,6 +269,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Render(args)) => run_render(&args),
+        Some(Command::BenchTrace(args)) => run_bench_trace(&args),
         Some(Command::View(args)) => run_view(&args),
         None => run_render(&RenderArgs {
             fov: 80.0,

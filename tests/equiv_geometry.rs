@@ -47,9 +47,21 @@ fn scene_of(objects: Vec<Object>) -> Scene {
     }
 }
 
-/// The reference's nearest hit: (object or −2 for the floor, t).
-fn ref_hit(scene: &Scene, ray: &Ray) -> Option<(i64, f64)> {
-    Reference::new(scene).nearest(ray, f64::INFINITY).map(|f| {
+/// The reference's nearest hit: (object or −2 for the floor, t). Without the floor,
+/// the reference's own loop over the objects (ties to the first).
+fn ref_hit(tracer: &Reference, scene: &Scene, ray: &Ray, with_floor: bool) -> Option<(i64, f64)> {
+    if !with_floor {
+        let mut best = None;
+        let mut t_best = f64::INFINITY;
+        for (k, o) in scene.objects.iter().enumerate() {
+            if let Some(h) = geometry::intersect_ref(&o.shape, ray, t_best) {
+                t_best = h.t;
+                best = Some((k as i64, h.t));
+            }
+        }
+        return best;
+    }
+    tracer.nearest(ray, f64::INFINITY).map(|f| {
         let id = match f.target {
             Target::Object(k) => k as i64,
             Target::Floor => -2,
@@ -59,13 +71,13 @@ fn ref_hit(scene: &Scene, ray: &Ray) -> Option<(i64, f64)> {
 }
 
 /// Whether the reference's answer is unstable under small perturbations of the ray.
-fn at_edge(scene: &Scene, ray: &Ray, rng: &mut Rng) -> bool {
-    let base = ref_hit(scene, ray);
+fn at_edge(tracer: &Reference, scene: &Scene, ray: &Ray, with_floor: bool, rng: &mut Rng) -> bool {
+    let base = ref_hit(tracer, scene, ray, with_floor);
     let scale = ray.origin.abs().max_element().max(1.0);
     (0..8).any(|_| {
         let o = ray.origin + rng.unit() * (1e-5 * scale);
         let d = (ray.dir + rng.unit() * 1e-5).normalize();
-        let h = ref_hit(scene, &Ray::new(o, d));
+        let h = ref_hit(tracer, scene, &Ray::new(o, d), with_floor);
         match (base, h) {
             (None, None) => false,
             (Some((a, ta)), Some((b, tb))) => a != b || ((ta - tb) / ta).abs() > T_TOL,
@@ -93,12 +105,21 @@ struct Tally {
 
 /// Traces `rays` through the scene on the reference, the single-ray BVH path and the
 /// packet path (in packets of 8, some lanes inactive), and checks the rules.
-fn check_rays(name: &str, scene: &Scene, with_floor: bool, rays: &[Ray], seed: u64) -> Tally {
+/// At most `max_edge` of the rays may disagree at an edge.
+fn check_rays(
+    name: &str,
+    scene: &Scene,
+    with_floor: bool,
+    rays: &[Ray],
+    seed: u64,
+    max_edge: f64,
+) -> Tally {
     let mut prims = PrimSet::from_scene(scene, DVec3::ZERO);
     if !with_floor {
         prims.floor = None;
     }
     let bvh = Bvh::build(prims);
+    let tracer = Reference::new(scene);
     let mut rng = Rng(seed);
     let mut tally = Tally::default();
     let mut steps = Steps::default();
@@ -154,12 +175,13 @@ fn check_rays(name: &str, scene: &Scene, with_floor: bool, rays: &[Ray], seed: u
                 c * 8 + i
             );
             let fast = (fast_object(&bvh, &h1), h1.t as f64);
-            let reference = ref_hit(scene, r).map_or((-1, f64::INFINITY), |h| h);
+            let reference =
+                ref_hit(&tracer, scene, r, with_floor).map_or((-1, f64::INFINITY), |h| h);
             let agree = fast.0 == reference.0
                 && (fast.0 == -1 || ((fast.1 - reference.1) / reference.1).abs() <= T_TOL);
             if !agree {
                 assert!(
-                    at_edge(scene, r, &mut rng),
+                    at_edge(&tracer, scene, r, with_floor, &mut rng),
                     "{name}: ray {} ({:?}) fast {:?} vs reference {:?}, not at an edge",
                     c * 8 + i,
                     r,
@@ -172,7 +194,7 @@ fn check_rays(name: &str, scene: &Scene, with_floor: bool, rays: &[Ray], seed: u
     }
     println!("{name}: {tally:?}");
     assert!(
-        tally.edge_mismatches * 100 <= tally.rays,
+        tally.edge_mismatches as f64 <= max_edge * tally.rays as f64,
         "{name}: too many edge mismatches: {tally:?}"
     );
     tally
@@ -245,7 +267,7 @@ fn spheres_match_per_lane() {
         DVec3::ZERO,
         3.0,
     ));
-    let t = check_rays("spheres", &scene, false, &rays, 11);
+    let t = check_rays("spheres", &scene, false, &rays, 11, 0.01);
     assert!(t.rays > 2500);
 }
 
@@ -305,7 +327,7 @@ fn triangles_match_per_lane_at_vertices_and_shared_edges() {
             }
         }
     }
-    check_rays("triangles", &scene, false, &rays, 12);
+    check_rays("triangles", &scene, false, &rays, 12, 0.1);
 }
 
 #[test]
@@ -419,7 +441,7 @@ fn quadrics_match_per_lane_with_box_clipping() {
         DVec3::new(5.0, 0.0, 0.0),
         2.0,
     ));
-    check_rays("quadrics", &scene, false, &rays, 13);
+    check_rays("quadrics", &scene, false, &rays, 13, 0.01);
 }
 
 #[test]
@@ -448,7 +470,7 @@ fn floor_matches_per_lane() {
     ));
     rays.push(Ray::new(DVec3::new(0.0, 0.0, 1.0), DVec3::X));
     rays.push(Ray::new(DVec3::new(500.0, -500.0, 10.0), DVec3::NEG_Z));
-    check_rays("floor", &scene, true, &rays, 14);
+    check_rays("floor", &scene, true, &rays, 14, 0.01);
 }
 
 #[test]
@@ -473,7 +495,7 @@ fn whole_bvh_traversal_matches_with_mixed_packets() {
         DVec3::ZERO,
         60.0,
     ));
-    let t = check_rays("generated 600", &scene, true, &rays, 15);
+    let t = check_rays("generated 600", &scene, true, &rays, 15, 0.01);
     assert!(t.rays > 4000);
 }
 
@@ -491,7 +513,7 @@ fn meshes_are_hit_like_their_triangles() {
         DVec3::new(1.0, 1.0, 0.0),
         1.5,
     );
-    check_rays("mesh", &scene, false, &rays, 16);
+    check_rays("mesh", &scene, false, &rays, 16, 0.01);
     let r = Ray::new(DVec3::new(0.5, 0.2, 3.0), DVec3::NEG_Z);
     let h = geometry::intersect_ref(&scene.objects[0].shape, &r, f64::INFINITY).unwrap();
     assert!((h.t - 3.0).abs() < 1e-12 && h.part == 0);

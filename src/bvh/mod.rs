@@ -11,6 +11,7 @@
 //! object index (file order), the floor last; shadow (any-hit) queries stop at the
 //! first blocker.
 
+pub mod bench;
 pub mod build;
 pub mod node;
 pub mod traverse_1;

@@ -29,7 +29,7 @@ impl Profile {
 
     /// The profile used when none is named.
     pub fn default_name() -> &'static str {
-        "reference"
+        "fast"
     }
 
     pub fn by_name(name: &str) -> Option<Profile> {
