@@ -20,7 +20,7 @@ pub const MAX_LEAF: usize = 8;
 /// Cost of one box test relative to one primitive test.
 pub const C_TRAVERSE: f32 = 1.0;
 /// Depth past which ranges are halved instead of SAH-split.
-const MEDIAN_DEPTH: usize = 160;
+const MEDIAN_DEPTH: usize = 48;
 
 /// A primitive reference during the build: bounds and (kind, index) packed.
 #[derive(Clone, Copy, Debug)]
@@ -95,7 +95,7 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
         }
         let bounds = Aabb::new(lo.into(), hi.into());
         let n = part.len();
-        let mixed = part.iter().any(|r| r.kind != part[0].kind);
+        let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind != part[0].kind);
         let widest = widest_axis(chi - clo);
         let (mid, axis) = match choose_split(part, lo, hi, clo, chi, depth) {
             Split::Leaf if !mixed => {

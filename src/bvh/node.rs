@@ -116,20 +116,25 @@ impl BvhNode {
     }
 
     /// Slab test of a packet: the lanes of `active` that meet the box with
-    /// 0 <= t <= t_max (far bound widened by 1 + 2γ(3)). wide's `min`/`max` are used,
-    /// never `fast_*`; with the slab rule no NaN can arise anyway.
+    /// 0 <= t <= t_max (far bound widened by 1 + 2γ(3)).
+    ///
+    /// `fast_min`/`fast_max` are safe here, and only here: with the slab rule (1/d
+    /// finite, see `math::packet`) and finite box bounds and origins, no t is NaN, so
+    /// they agree with wide's NaN-ignoring `min`/`max` on every target.
+    // Tried: wide's `min`/`max` (a NaN check and a blend each): bench-trace torus100k
+    // primary mode=8, 1 thread, 11.2 Mrays/s before vs the figure in benches/README.md.
     #[inline]
     pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
         let slab = |lo: f32, hi: f32, o: f32x8, inv: f32x8| {
             let t0 = (f32x8::splat(lo) - o) * inv;
             let t1 = (f32x8::splat(hi) - o) * inv;
-            (t0.min(t1), t0.max(t1))
+            (t0.fast_min(t1), t0.fast_max(t1))
         };
         let (nx, fx) = slab(self.lo[0], self.hi[0], r.origin.x, r.inv_dir.x);
         let (ny, fy) = slab(self.lo[1], self.hi[1], r.origin.y, r.inv_dir.y);
         let (nz, fz) = slab(self.lo[2], self.hi[2], r.origin.z, r.inv_dir.z);
-        let near = nx.max(ny).max(nz.max(f32x8::ZERO));
-        let far = (fx.min(fy).min(fz) * f32x8::splat(FAR_WIDEN)).min(t_max);
+        let near = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::ZERO));
+        let far = (fx.fast_min(fy).fast_min(fz) * f32x8::splat(FAR_WIDEN)).fast_min(t_max);
         active & near.le(far)
     }
 }

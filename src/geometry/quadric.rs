@@ -116,6 +116,52 @@ pub struct Quadric32 {
     pub coef: [f32; 10],
     pub lo: Vec3,
     pub hi: Vec3,
+    /// Bounds of the surface when it is an ellipsoid (then it can live in the BVH even
+    /// when the box leaves an axis unclipped).
+    pub ellipsoid: Option<Aabb>,
+}
+
+/// Bounds of {F = 0} when the quadratic part M is definite (an ellipsoid): centre
+/// c = −M⁻¹g/2, half-extent along axis i √(k·(M⁻¹)ᵢᵢ) with k = −F(c), padded by a
+/// relative 1e-5 against rounding. `k` holds the ten coefficients (f64).
+fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
+    let [a, b, c, d, e, f, g, h, i, j] = *k;
+    let m = glam::DMat3::from_cols(
+        DVec3::new(a, d / 2.0, e / 2.0),
+        DVec3::new(d / 2.0, b, f / 2.0),
+        DVec3::new(e / 2.0, f / 2.0, c),
+    );
+    // definite: leading principal minors all positive (or, for −M, alternating)
+    let m1 = a;
+    let m2 = a * b - d * d / 4.0;
+    let m3 = m.determinant();
+    let sign = if m1 > 0.0 && m2 > 0.0 && m3 > 0.0 {
+        1.0
+    } else if m1 < 0.0 && m2 > 0.0 && m3 < 0.0 {
+        -1.0
+    } else {
+        return None;
+    };
+    let m = m * sign;
+    let g = DVec3::new(g, h, i) * sign;
+    let inv = m.inverse();
+    let centre = -(inv * g) / 2.0;
+    let kk = -(j * sign + g.dot(centre) / 2.0);
+    if kk.is_nan() || kk <= 0.0 {
+        return None;
+    }
+    let half =
+        DVec3::new(inv.x_axis.x, inv.y_axis.y, inv.z_axis.z).map(|v| (kk * v).max(0.0).sqrt());
+    if !(half.is_finite() && centre.is_finite()) {
+        return None;
+    }
+    let pad = (half + centre.abs()) * 1e-5;
+    let lo = centre - half - pad;
+    let hi = centre + half + pad;
+    Some(Aabb::new(
+        Vec3::new(f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)),
+        Vec3::new(f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)),
+    ))
 }
 
 impl Quadric32 {
@@ -144,12 +190,20 @@ impl Quadric32 {
             coef: k.map(|v| v as f32),
             lo: Vec3::new(x.0, y.0, z.0),
             hi: Vec3::new(x.1, y.1, z.1),
+            ellipsoid: ellipsoid_bounds(&k),
         }
     }
 
-    /// The clipping box when every axis is clipped.
+    /// Finite bounds: the clipping box when every axis is clipped, else the bounds of
+    /// an ellipsoid (definite quadratic part) cut by the box, else none.
     pub fn bounds(&self) -> Option<Aabb> {
-        (self.lo.is_finite() && self.hi.is_finite()).then(|| Aabb::new(self.lo, self.hi))
+        let mut lo = self.lo;
+        let mut hi = self.hi;
+        if let Some(e) = self.ellipsoid {
+            lo = lo.max(e.lo);
+            hi = hi.min(e.hi);
+        }
+        (lo.is_finite() && hi.is_finite()).then(|| Aabb::new(lo.min(hi), hi))
     }
 
     fn value(&self, p: Vec3) -> f32 {

@@ -6,8 +6,10 @@
 //! - [`frame`]: splits a frame into bands of rows over rayon.
 
 pub mod caustic;
+pub mod diff;
 pub mod frame;
 pub mod packet;
+pub mod prepared;
 pub mod profile;
 pub mod reference;
 pub mod spectral;

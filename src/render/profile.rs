@@ -1,14 +1,26 @@
-//! Render profiles: named choices of code path and knobs, picked once per frame.
+//! Render profiles: named sets of knobs, each a code-path choice made once per frame,
+//! never tested per ray.
 //!
-//! Profiles: `fast` (the default: the packet path) and `reference` (the oracle).
-//! Today a profile is only its path; `profiles/*.toml` (knobs: precision, ray offsets,
-//! samples, ...) extends this.
+//! A profile is a TOML file (`profiles/*.toml`: `reference`, `accurate`, `fast` — the
+//! default — and `preview`); every knob and its default is documented in those files.
+//! [`Profile::load`] takes a name (looked up in `./profiles/`, else the copies compiled
+//! into the binary) or a path. Unknown keys and bad values are errors naming
+//! file:line:column and the key.
+//!
+//! [`Profile::prepare`] builds the per-scene data once (the packet BVH, the prism photon
+//! map); [`Prepared::render`] then renders any number of frames.
 
+use std::path::Path;
+
+use serde::Deserialize;
+
+pub use super::prepared::Prepared;
 use super::{RenderSettings, Rendered};
 use crate::scene::Scene;
 
 /// Which renderer traces the frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum RenderPath {
     /// f64, one ray at a time, every object tested: the oracle.
     Reference,
@@ -16,41 +28,312 @@ pub enum RenderPath {
     Packet,
 }
 
-/// A named profile.
+/// The packet path's ray/triangle test.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TriangleTest {
+    /// Woop, Benthin and Wald 2013: no ray passes between two triangles sharing an edge.
+    Watertight,
+    /// Möller–Trumbore: cheaper, can miss both triangles at a shared edge.
+    Moller,
+}
+
+/// How secondary rays leave a surface.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(try_from = "String")]
+pub enum RayOffset {
+    /// Past the hit point's floating-point error bound along the normal (any scale).
+    ErrorBound,
+    /// A fixed distance along the normal, in scene units (fails at extreme scales).
+    Epsilon(f32),
+}
+
+impl TryFrom<String> for RayOffset {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        if s == "error_bound" {
+            return Ok(RayOffset::ErrorBound);
+        }
+        if let Some(v) = s.strip_prefix("epsilon:") {
+            return match v.trim().parse::<f32>() {
+                Ok(e) if e.is_finite() && e > 0.0 => Ok(RayOffset::Epsilon(e)),
+                _ => Err(format!(
+                    "`{s}`: the epsilon must be a finite number > 0, e.g. \"epsilon:1e-3\""
+                )),
+            };
+        }
+        Err(format!(
+            "`{s}`: expected \"error_bound\" or \"epsilon:<value>\""
+        ))
+    }
+}
+
+/// A named profile: every knob of `profiles/*.toml`, validated.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Profile {
     pub name: String,
     pub path: RenderPath,
+    /// Samples per pixel, a square n² (n × n stratified sub-pixel grid); 1 = pixel centre.
+    pub samples_per_pixel: u32,
+    /// Render at this fraction of the requested size, then upscale (bilinear); 1 = off.
+    pub resolution_scale: f64,
+    /// Cap on the scene's recursion level; `None` = the scene's own.
+    pub max_recursion: Option<u32>,
+    /// Caustic photons emitted for scenes with glass (0 = no caustic).
+    pub photons: u32,
+    /// Packet path: packets with at most this many active lanes go ray by ray.
+    pub single_ray_lanes: u32,
+    /// Packet path: the triangle test.
+    pub triangle_test: TriangleTest,
+    /// Packet path: how secondary rays leave surfaces.
+    pub ray_offset: RayOffset,
+    /// Packet path: shadow rays stop at the first blocker (any-hit) rather than
+    /// searching for the nearest.
+    pub shadow_any_hit: bool,
 }
 
+/// `samples_per_pixel`: a square from 1 to 64.
+#[derive(Deserialize)]
+#[serde(try_from = "u32")]
+struct Spp(u32);
+
+impl TryFrom<u32> for Spp {
+    type Error = String;
+    fn try_from(n: u32) -> Result<Self, String> {
+        let root = (1..=8).find(|r| r * r == n);
+        root.map(|_| Spp(n)).ok_or_else(|| {
+            format!("{n}: expected a square number of samples from 1 to 64 (1, 4, 9, 16, ...)")
+        })
+    }
+}
+
+/// `resolution_scale`: in [1/16, 1].
+#[derive(Deserialize)]
+#[serde(try_from = "f64")]
+struct Scale(f64);
+
+impl TryFrom<f64> for Scale {
+    type Error = String;
+    fn try_from(s: f64) -> Result<Self, String> {
+        if (1.0 / 16.0..=1.0).contains(&s) {
+            Ok(Scale(s))
+        } else {
+            Err(format!("{s}: expected a scale from 0.0625 to 1"))
+        }
+    }
+}
+
+/// `single_ray_lanes`: 0 to 8.
+#[derive(Deserialize)]
+#[serde(try_from = "u32")]
+struct Lanes(u32);
+
+impl TryFrom<u32> for Lanes {
+    type Error = String;
+    fn try_from(n: u32) -> Result<Self, String> {
+        if n <= 8 {
+            Ok(Lanes(n))
+        } else {
+            Err(format!("{n}: expected 0 to 8 lanes"))
+        }
+    }
+}
+
+/// `photons`: 0 to 10 million.
+#[derive(Deserialize)]
+#[serde(try_from = "u32")]
+struct Photons(u32);
+
+impl TryFrom<u32> for Photons {
+    type Error = String;
+    fn try_from(n: u32) -> Result<Self, String> {
+        if n <= 10_000_000 {
+            Ok(Photons(n))
+        } else {
+            Err(format!("{n}: expected at most 10000000 photons"))
+        }
+    }
+}
+
+/// The file format: every key optional, defaults as documented in `profiles/*.toml`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProfileFile {
+    path: Option<RenderPath>,
+    samples_per_pixel: Option<Spp>,
+    resolution_scale: Option<Scale>,
+    max_recursion: Option<u32>,
+    photons: Option<Photons>,
+    single_ray_lanes: Option<Lanes>,
+    triangle_test: Option<TriangleTest>,
+    ray_offset: Option<RayOffset>,
+    shadow_any_hit: Option<bool>,
+}
+
+/// Why a profile could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileError {
+    /// Bad TOML, an unknown key or a bad value, at `file:line:column`.
+    #[error("{file}:{line}:{column}: {}{message}", key.as_ref().map_or(String::new(), |k| format!("key `{k}`: ")))]
+    Syntax {
+        file: String,
+        line: usize,
+        column: usize,
+        key: Option<String>,
+        message: String,
+    },
+    #[error("{path}: {error}")]
+    Io { path: String, error: std::io::Error },
+    #[error("unknown profile `{0}` (built in: {names}; or give a path to a .toml file)", names = Profile::NAMES.join(", "))]
+    Unknown(String),
+}
+
+/// The profiles compiled into the binary, so it runs from any directory.
+const BUILTIN: &[(&str, &str)] = &[
+    ("reference", include_str!("../../profiles/reference.toml")),
+    ("accurate", include_str!("../../profiles/accurate.toml")),
+    ("fast", include_str!("../../profiles/fast.toml")),
+    ("preview", include_str!("../../profiles/preview.toml")),
+];
+
 impl Profile {
-    /// Names accepted by [`Profile::by_name`].
-    pub const NAMES: &'static [&'static str] = &["fast", "reference"];
+    /// Names of the built-in profiles (`profiles/*.toml`).
+    pub const NAMES: &'static [&'static str] = &["reference", "accurate", "fast", "preview"];
 
     /// The profile used when none is named.
     pub fn default_name() -> &'static str {
         "fast"
     }
 
+    /// A built-in profile by name (the copy compiled into the binary).
     pub fn by_name(name: &str) -> Option<Profile> {
-        let path = match name {
-            "reference" => RenderPath::Reference,
-            "fast" => RenderPath::Packet,
-            _ => return None,
-        };
-        Some(Profile {
+        let (_, text) = BUILTIN.iter().find(|(n, _)| *n == name)?;
+        let file = format!("profiles/{name}.toml");
+        Some(Profile::from_toml(name, text, &file).expect("built-in profiles are valid"))
+    }
+
+    /// `spec` is a path (it ends in `.toml` or contains a `/`) or a name: `profiles/NAME.toml`
+    /// under the current directory if it exists, else the built-in copy.
+    pub fn load(spec: &str) -> Result<Profile, ProfileError> {
+        let looks_like_path = spec.ends_with(".toml") || spec.contains('/') || spec.contains('\\');
+        if looks_like_path {
+            return Profile::from_file(Path::new(spec));
+        }
+        let local = Path::new("profiles").join(format!("{spec}.toml"));
+        if local.is_file() {
+            return Profile::from_file(&local);
+        }
+        Profile::by_name(spec).ok_or_else(|| ProfileError::Unknown(spec.to_string()))
+    }
+
+    /// Loads a profile file; its name is the file stem.
+    pub fn from_file(path: &Path) -> Result<Profile, ProfileError> {
+        let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Io {
+            path: path.display().to_string(),
+            error,
+        })?;
+        let name = path
+            .file_stem()
+            .map_or_else(|| "profile".into(), |s| s.to_string_lossy().into_owned());
+        Profile::from_toml(&name, &text, &path.display().to_string())
+    }
+
+    /// Parses profile `name` from TOML `text`; `file` names it in errors.
+    pub fn from_toml(name: &str, text: &str, file: &str) -> Result<Profile, ProfileError> {
+        let f: ProfileFile = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
+        // Knobs in the schema that the packet path does not implement yet: only their
+        // defaults are accepted, so no profile claims a setting that does nothing.
+        let not_wired = [
+            (
+                "triangle_test",
+                f.triangle_test
+                    .is_some_and(|t| t != TriangleTest::Watertight),
+            ),
+            (
+                "ray_offset",
+                f.ray_offset.is_some_and(|o| o != RayOffset::ErrorBound),
+            ),
+            ("shadow_any_hit", f.shadow_any_hit == Some(false)),
+        ];
+        if let Some((key, _)) = not_wired.iter().find(|(_, set)| *set) {
+            let (line, column) = key_position(text, key);
+            return Err(ProfileError::Syntax {
+                file: file.to_string(),
+                line,
+                column,
+                key: Some(key.to_string()),
+                message: "not implemented yet: only the default value is accepted".into(),
+            });
+        }
+        Ok(Profile {
             name: name.to_string(),
-            path,
+            path: f.path.unwrap_or(RenderPath::Packet),
+            samples_per_pixel: f.samples_per_pixel.map_or(1, |s| s.0),
+            resolution_scale: f.resolution_scale.map_or(1.0, |s| s.0),
+            max_recursion: f.max_recursion.filter(|&m| m > 0),
+            photons: f
+                .photons
+                .map_or(super::caustic::CausticSettings::default().photons, |p| p.0),
+            single_ray_lanes: f
+                .single_ray_lanes
+                .map_or(super::packet::FALLBACK_LANES, |l| l.0),
+            triangle_test: f.triangle_test.unwrap_or(TriangleTest::Watertight),
+            ray_offset: f.ray_offset.unwrap_or(RayOffset::ErrorBound),
+            shadow_any_hit: f.shadow_any_hit.unwrap_or(true),
         })
     }
 
-    /// Renders one frame on this profile's path.
+    /// Sub-pixel grid side: `samples_per_pixel` = n².
+    pub fn samples_per_axis(&self) -> u32 {
+        (1..=8)
+            .find(|n| n * n == self.samples_per_pixel)
+            .unwrap_or(1)
+    }
+
+    /// Builds the per-scene data of this profile once (the packet BVH or, for scenes
+    /// with glass, the reference's photon map) for any number of frames.
+    pub fn prepare<'a>(&self, scene: &'a Scene) -> Prepared<'a> {
+        Prepared::new(self, scene)
+    }
+
+    /// Renders one frame (prepares the scene first; prefer [`Profile::prepare`] for
+    /// many frames of one scene).
     pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
-        match self.path {
-            RenderPath::Reference => super::reference::render(scene, settings),
-            // The packet path has no refraction: scenes with glass go to the reference.
-            RenderPath::Packet if scene.has_prisms() => super::reference::render(scene, settings),
-            RenderPath::Packet => super::packet::render(scene, settings),
-        }
+        self.prepare(scene).render(settings)
+    }
+}
+
+/// Line and column (1-based) of the line that sets `key` (1:1 if none does).
+fn key_position(text: &str, key: &str) -> (usize, usize) {
+    text.lines()
+        .enumerate()
+        .find_map(|(i, l)| {
+            let t = l.trim_start();
+            let rest = t.strip_prefix(key)?;
+            rest.trim_start()
+                .starts_with('=')
+                .then(|| (i + 1, l.len() - t.len() + 1))
+        })
+        .unwrap_or((1, 1))
+}
+
+/// A TOML error as `file:line:column`, with the key on that line.
+fn syntax_error(text: &str, file: &str, e: &toml::de::Error) -> ProfileError {
+    let start = e.span().map_or(0, |s| s.start).min(text.len());
+    let before = &text[..start];
+    let line = before.matches('\n').count() + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let column = before[line_start..].chars().count() + 1;
+    let line_text = text[line_start..].lines().next().unwrap_or("");
+    let key = line_text
+        .split_once('=')
+        .map(|(k, _)| k.trim().trim_matches('"').to_string())
+        .filter(|k| !k.is_empty() && !k.starts_with('#') && !k.starts_with('['));
+    ProfileError::Syntax {
+        file: file.to_string(),
+        line,
+        column,
+        key,
+        message: e.message().trim().to_string(),
     }
 }

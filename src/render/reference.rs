@@ -76,6 +76,8 @@ pub struct Reference<'a> {
     caustics: Option<CausticMap>,
     /// Seed of the per-pixel wavelengths.
     seed: u64,
+    /// The recursion level traced (the scene's unless a profile caps it).
+    recursion_level: u32,
 }
 
 /// The pixel a camera ray belongs to, and its wavelengths once a ray meets glass.
@@ -115,11 +117,18 @@ impl<'a> Reference<'a> {
             prisms,
             caustics: None,
             seed: settings.seed,
+            recursion_level: scene.recursion_level,
         };
         if scene.has_prisms() {
             r.caustics = CausticMap::build(scene, settings, &r);
         }
         r
+    }
+
+    /// Traces at most `level` levels (a profile's `max_recursion`); the photon map does
+    /// not depend on it.
+    pub fn cap_recursion(&mut self, level: u32) {
+        self.recursion_level = self.recursion_level.min(level);
     }
 
     /// The caustic photon map, if the scene has glass that a light reaches.
@@ -244,7 +253,7 @@ impl<'a> Reference<'a> {
                 }
                 chain.push((local, DVec3::splat(m.kr)));
                 // level N gives N − 1 bounces; kr = 0 would add exactly nothing
-                if level >= self.scene.recursion_level || m.kr == 0.0 {
+                if level >= self.recursion_level || m.kr == 0.0 {
                     break;
                 }
                 let n = surf.normal;
@@ -256,7 +265,7 @@ impl<'a> Reference<'a> {
                 continue;
             };
             // glass: reflected and transmitted rays, both at the next level
-            if level >= self.scene.recursion_level {
+            if level >= self.recursion_level {
                 chain.push((local, DVec3::ZERO));
                 break;
             }

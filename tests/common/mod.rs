@@ -3,9 +3,6 @@
 #![allow(dead_code)]
 
 use glam::DVec3;
-use octaray::math::Ray;
-use octaray::output::Framebuffer;
-use octaray::render::reference::{Reference, Target};
 use octaray::scene::{Camera, Material, Object, PointLight, Scene, Shape, SpotLight};
 
 /// A small deterministic generator (SplitMix64), so no test depends on a crate's RNG.
@@ -131,108 +128,12 @@ pub fn generated_scene(n: usize, seed: u64) -> Scene {
     }
 }
 
-/// Comparison of two images with masks of legitimate differences.
-#[derive(Debug, Default)]
-pub struct ImageDiff {
-    pub pixels: usize,
-    pub max_diff: u8,
-    pub psnr_db: f64,
-    /// Pixels off by more than 2/255 in some channel.
-    pub off2: usize,
-    /// Of those, pixels on a silhouette (the primary-hit object differs from a
-    /// neighbour's) or on an edge of the reference image (a channel jumps by more
-    /// than 24/255 to a neighbour: shadow edges, cone edges, tile edges, reflections of them).
-    pub off2_masked: usize,
-    /// Pixels off by more than 2/255 outside those masks.
-    pub off2_unmasked: usize,
-}
-
-impl ImageDiff {
-    pub fn unmasked_fraction(&self) -> f64 {
-        self.off2_unmasked as f64 / self.pixels as f64
-    }
-}
+/// Image comparison with masks of legitimate differences: the library's
+/// (`octaray::render::diff`, also used by `octaray tradeoff`).
+#[allow(unused_imports)]
+pub use octaray::render::diff::{ImageDiff, compare};
 
 /// The primary-hit object of each pixel on the reference path (−1 background, −2 floor).
 pub fn reference_ids(scene: &Scene, camera: &Camera, size: u32) -> Vec<i64> {
-    let grid = camera.pixel_grid(size, size);
-    let tracer = Reference::new(scene);
-    let mut ids = Vec::with_capacity((size * size) as usize);
-    for j in 0..size {
-        for i in 0..size {
-            let ray = Ray::new(grid.eye, grid.direction(i as f64, j as f64));
-            ids.push(match tracer.nearest(&ray, f64::INFINITY) {
-                None => -1,
-                Some(f) => match f.target {
-                    Target::Floor => -2,
-                    Target::Object(k) => k as i64,
-                },
-            });
-        }
-    }
-    ids
-}
-
-pub fn compare(reference: &Framebuffer, fast: &Framebuffer, ids: &[i64]) -> ImageDiff {
-    assert_eq!(
-        (reference.width, reference.height),
-        (fast.width, fast.height)
-    );
-    let (w, h) = (reference.width as i64, reference.height as i64);
-    let mut d = ImageDiff {
-        pixels: reference.pixels.len(),
-        ..ImageDiff::default()
-    };
-    let mut sq = 0.0;
-    for y in 0..h {
-        for x in 0..w {
-            let k = (y * w + x) as usize;
-            let (a, b) = (reference.pixels[k], fast.pixels[k]);
-            let diff = (0..3).map(|c| a[c].abs_diff(b[c])).max().unwrap();
-            sq += (0..3)
-                .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
-                .sum::<f64>();
-            d.max_diff = d.max_diff.max(diff);
-            if diff <= 2 {
-                continue;
-            }
-            d.off2 += 1;
-            let mut edge = false;
-            for (dx, dy) in [
-                (-1, 0),
-                (1, 0),
-                (0, -1),
-                (0, 1),
-                (-1, -1),
-                (1, 1),
-                (-1, 1),
-                (1, -1),
-            ] {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                    continue;
-                }
-                let n = (ny * w + nx) as usize;
-                let jump = (0..3)
-                    .map(|c| a[c].abs_diff(reference.pixels[n][c]))
-                    .max()
-                    .unwrap();
-                if ids[n] != ids[k] || jump > 24 {
-                    edge = true;
-                }
-            }
-            if edge {
-                d.off2_masked += 1;
-            } else {
-                d.off2_unmasked += 1;
-            }
-        }
-    }
-    let mse = sq / (3.0 * d.pixels as f64);
-    d.psnr_db = if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (255.0f64 * 255.0 / mse).log10()
-    };
-    d
+    octaray::render::diff::reference_ids(scene, camera, size, size)
 }
