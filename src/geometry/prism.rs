@@ -63,6 +63,13 @@ impl Prepared {
     }
 }
 
+impl Prepared {
+    /// Surface at a hit of [`Prepared::intersect_ref`] (the same as [`surface_ref`]).
+    pub fn surface_ref(&self, hit: &RefHit) -> SurfacePoint {
+        triangle::surface_ref(&self.faces[hit.part], hit)
+    }
+}
+
 /// Nearest hit of the eight faces with 0 < t < t_max; `part` is the face index.
 pub fn intersect_ref(v: &[DVec3; 6], ray: &Ray, t_max: f64) -> Option<RefHit> {
     Prepared::new(v).intersect_ref(ray, t_max)

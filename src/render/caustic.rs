@@ -461,13 +461,20 @@ impl CausticMap {
         if p.cmplt(self.lo - far).any() || p.cmpgt(self.hi + far).any() {
             return DVec3::ZERO;
         }
-        let (sum, count) = self.gather(p, n, self.radius);
-        if count >= MIN_PHOTONS {
-            return sum * (2.0 / (std::f64::consts::PI * self.radius * self.radius));
+        let norm = |r: f64| 2.0 / (std::f64::consts::PI * r * r);
+        // the wide estimate first: where it finds nothing (most of a scene), so would
+        // the narrow one, which it contains
+        let wide = self
+            .wide
+            .as_ref()
+            .map(|w| (w.gather(p, n, w.radius), w.radius));
+        if let Some(((sum, 0), _)) = wide {
+            return sum;
         }
-        match &self.wide {
-            Some(w) => w.irradiance(p, n),
-            None => sum * (2.0 / (std::f64::consts::PI * self.radius * self.radius)),
+        let (sum, count) = self.gather(p, n, self.radius);
+        match wide {
+            Some(((wide_sum, _), r)) if count < MIN_PHOTONS => wide_sum * norm(r),
+            _ => sum * norm(self.radius),
         }
     }
 

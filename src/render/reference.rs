@@ -188,7 +188,10 @@ impl<'a> Reference<'a> {
             }
             Target::Object(i) => {
                 let o = &self.scene.objects[i];
-                let s = geometry::surface_ref(&o.shape, ray, &found.hit);
+                let s = match &self.prisms[i] {
+                    Some(p) => p.surface_ref(&found.hit),
+                    None => geometry::surface_ref(&o.shape, ray, &found.hit),
+                };
                 (s, o.material.color, o.material)
             }
         }
