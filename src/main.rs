@@ -44,6 +44,10 @@ struct ViewArgs {
     /// [default: fast]
     #[arg(long)]
     profile: Option<String>,
+    /// Profile of the frames below full resolution (while moving, and the refinement
+    /// passes): a name or a path to a .toml file.
+    #[arg(long, default_value = "preview")]
+    preview_profile: String,
     /// Window size.
     #[arg(long, default_value = "768x768")]
     size: viewer::Size,
@@ -251,6 +255,7 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         scene: std::sync::Arc::new(parsed.scene),
         scene_name: name,
         capture_profile: profile.clone(),
+        moving_profile: load_profile(&args.preview_profile)?,
         profile,
         size: args.size,
         out_dir: args.out_dir.clone(),

@@ -49,7 +49,7 @@ use glam::DVec3;
 use minifb::{Key, Window, WindowOptions};
 
 use crate::output::{Framebuffer, write_next_output};
-use crate::render::profile::Profile;
+use crate::render::profile::{Prepared, Profile};
 use crate::render::{RenderSettings, RenderStats};
 use crate::scene::{Camera, Scene};
 use flycam::{FlyCam, Motion};
@@ -119,10 +119,12 @@ pub struct ViewConfig {
     pub scene: Arc<Scene>,
     /// Shown in the title bar (its file name).
     pub scene_name: String,
-    /// Renders the preview frames.
+    /// Renders the full-resolution frames of a still camera.
     pub profile: Profile,
-    /// Renders captures (key 0) at the scene's resolution. Today the same profile as the
-    /// preview: profiles have no separate preview quality yet.
+    /// Renders the frames below full resolution (moving, and the refinement passes
+    /// before full resolution): the `preview` profile by default.
+    pub moving_profile: Profile,
+    /// Renders captures (key 0) at the scene's resolution (`octaray render`'s image).
     pub capture_profile: Profile,
     /// Initial window size.
     pub size: Size,
@@ -251,7 +253,7 @@ struct Frame {
     stats: RenderStats,
 }
 
-fn render_job(scene: &Scene, profile: &Profile, job: &Job) -> Frame {
+fn render_job(prepared: &Prepared, job: &Job) -> Frame {
     let (w, h) = preview_size(job.width, job.height, job.divisor);
     let settings = RenderSettings {
         width: w,
@@ -260,7 +262,7 @@ fn render_job(scene: &Scene, profile: &Profile, job: &Job) -> Frame {
         threads: None,
         progress: false,
     };
-    let rendered = profile.render(scene, &settings);
+    let rendered = prepared.render(&settings);
     Frame {
         job: *job,
         image: rendered.image,
@@ -291,6 +293,7 @@ fn present_into(image: &Framebuffer, w: usize, h: usize, buffer: &mut Vec<u32>) 
 fn spawn_render_worker(
     scene: Arc<Scene>,
     profile: Profile,
+    moving_profile: Profile,
 ) -> (
     mpsc::Sender<Job>,
     mpsc::Receiver<Frame>,
@@ -301,8 +304,12 @@ fn spawn_render_worker(
     let handle = thread::Builder::new()
         .name("octaray-preview".into())
         .spawn(move || {
+            // per-scene data (BVH, photon map) once, not per frame
+            let still = profile.prepare(&scene);
+            let moving = moving_profile.prepare(&scene);
             for job in job_rx {
-                if frame_tx.send(render_job(&scene, &profile, &job)).is_err() {
+                let prepared = if job.divisor > 1 { &moving } else { &still };
+                if frame_tx.send(render_job(prepared, &job)).is_err() {
                     break;
                 }
             }
@@ -431,8 +438,11 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
     let events = KeyEvents::default();
     window.set_input_callback(Box::new(events.clone()));
 
-    let (job_tx, frame_rx, render_thread) =
-        spawn_render_worker(config.scene.clone(), config.profile.clone());
+    let (job_tx, frame_rx, render_thread) = spawn_render_worker(
+        config.scene.clone(),
+        config.profile.clone(),
+        config.moving_profile.clone(),
+    );
     let (capture_tx, capture_rx, capture_thread) = spawn_capture_worker(
         config.scene.clone(),
         config.capture_profile.clone(),
@@ -687,6 +697,7 @@ impl fmt::Display for BenchReport {
 pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> BenchReport {
     let mut buffer = Vec::new();
     let (w, h) = (size.width, size.height);
+    let prepared = profile.prepare(scene);
     let mut refiner = Refiner::default();
     let mut fly = |label: &str, adaptive: bool, refiner: &mut Refiner| {
         let mut rays = 0;
@@ -704,7 +715,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
                 height: h,
                 divisor,
             };
-            let frame = render_job(scene, profile, &job);
+            let frame = render_job(&prepared, &job);
             present_into(&frame.image, w as usize, h as usize, &mut buffer);
             let (pw, ph) = preview_size(w, h, divisor);
             refiner.observe(pw as u64 * ph as u64, frame.stats.elapsed);
@@ -746,7 +757,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
                 height: h,
                 divisor: d,
             };
-            let frame = render_job(scene, profile, &job);
+            let frame = render_job(&prepared, &job);
             present_into(&frame.image, w as usize, h as usize, &mut buffer);
             passes.push(d);
         }
