@@ -298,3 +298,36 @@ pub fn run(
         Ok(runs)
     })
 }
+
+/// The standard torus (major radius 1, minor 0.4, around y; `nu` × `nv` segments, two
+/// triangles per quad), built in f32 exactly as `gen_data.py` does, for the criterion
+/// benches (bench-trace itself loads the OBJ file).
+pub fn torus(nu: usize, nv: usize) -> Vec<Triangle32> {
+    let vert = |i: usize, j: usize| {
+        let u = (i % nu) as f64 * std::f64::consts::TAU / nu as f64;
+        let v = (j % nv) as f64 * std::f64::consts::TAU / nv as f64;
+        let r = 1.0 + 0.4 * v.cos();
+        Vec3::new(
+            (r * u.cos()) as f32,
+            (0.4 * v.sin()) as f32,
+            (r * u.sin()) as f32,
+        )
+    };
+    let mut tris = Vec::with_capacity(2 * nu * nv);
+    for pass in 0..2 {
+        for i in 0..nu {
+            for j in 0..nv {
+                let (a, b, c, d) = (
+                    vert(i, j),
+                    vert(i + 1, j),
+                    vert(i + 1, j + 1),
+                    vert(i, j + 1),
+                );
+                tris.push(Triangle32 {
+                    v: if pass == 0 { [a, b, c] } else { [a, c, d] },
+                });
+            }
+        }
+    }
+    tris
+}
