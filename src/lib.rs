@@ -12,4 +12,5 @@ pub mod math;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod tradeoff;
 pub mod viewer;

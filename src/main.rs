@@ -33,6 +33,71 @@ enum Command {
     BenchTrace(BenchTraceArgs),
     /// Fly through a scene in a window, ray traced live (keys in the title bar).
     View(ViewArgs),
+    /// Measure each profile against the reference: time, Mrays/s, PSNR, pixels off;
+    /// writes profiles/TRADEOFF.md and profiles/tradeoff.png.
+    Tradeoff(TradeoffArgs),
+}
+
+#[derive(Args, Debug)]
+struct TradeoffArgs {
+    /// Scene files [default: every scenes/*.txt].
+    scenes: Vec<PathBuf>,
+    /// Image side in pixels.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
+    size: u32,
+    /// Side of the extra given-scene table (reference and fast; 0: none).
+    #[arg(long, default_value_t = 768, value_parser = clap::value_parser!(u32).range(0..=4096))]
+    given_size: u32,
+    /// Profiles, comma-separated names or paths to .toml files.
+    #[arg(
+        long,
+        default_value = "reference,accurate,fast,preview",
+        value_delimiter = ','
+    )]
+    profiles: Vec<String>,
+    /// Markdown report ("-": none).
+    #[arg(long, default_value = "profiles/TRADEOFF.md")]
+    markdown: PathBuf,
+    /// Plot of PSNR against time ("-": none).
+    #[arg(long, default_value = "profiles/tradeoff.png")]
+    plot: PathBuf,
+}
+
+fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
+    let profiles = args
+        .profiles
+        .iter()
+        .map(|p| load_profile(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let scenes = if args.scenes.is_empty() {
+        octaray::tradeoff::default_scenes(Path::new("scenes"))
+            .map_err(|e| Failure::input(e.to_string()))?
+    } else {
+        args.scenes.clone()
+    };
+    let out = |p: &PathBuf| (p.as_os_str() != "-").then(|| p.clone());
+    let opts = octaray::tradeoff::Options {
+        scenes,
+        profiles,
+        size: args.size,
+        headline_size: args.given_size,
+        markdown: out(&args.markdown),
+        plot: out(&args.plot),
+        command: std::iter::once("octaray".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" "),
+    };
+    let md =
+        octaray::tradeoff::run(&opts, &mut |line| eprintln!("{line}")).map_err(|e| match e {
+            octaray::tradeoff::TradeoffError::Input(m) => Failure::input(m),
+            e => Failure {
+                code: 1,
+                message: e.to_string(),
+            },
+        })?;
+    println!("{md}");
+    Ok(())
 }
 
 #[derive(Args, Debug)]
@@ -273,6 +338,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => run_render(&args),
         Some(Command::BenchTrace(args)) => run_bench_trace(&args),
         Some(Command::View(args)) => run_view(&args),
+        Some(Command::Tradeoff(args)) => run_tradeoff(&args),
         None => run_render(&RenderArgs {
             fov: 80.0,
             profile: Profile::default_name().into(),

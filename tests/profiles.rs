@@ -178,6 +178,14 @@ fn cli_refuses_a_bad_profile_with_exit_code_2() {
     for args in [
         vec!["render", "--size", "8", "--profile", bad.to_str().unwrap()],
         vec!["render", "--size", "8", "--profile", "no-such-profile"],
+        vec![
+            "tradeoff",
+            "--size",
+            "8",
+            "--profiles",
+            bad.to_str().unwrap(),
+        ],
+        vec!["tradeoff", "--size", "8", "no-such-scene.txt"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_octaray"))
             .args(&args)

@@ -55,6 +55,12 @@ pub struct RenderStats {
     pub reflection_rays: u64,
     /// Rays refracted into or out of glass (one per wavelength after a split).
     pub refraction_rays: u64,
+    /// Ray–quadric intersection tests (one per ray and quadric tested; per lane on
+    /// the packet path). Zero in a scene without quadrics.
+    pub quadric_tests: u64,
+    /// Spotlight cone tests (one per shading point and spotlight). Zero without
+    /// spotlights.
+    pub cone_tests: u64,
     pub elapsed: Duration,
 }
 
@@ -68,6 +74,8 @@ impl RenderStats {
         self.shadow_rays += o.shadow_rays;
         self.reflection_rays += o.reflection_rays;
         self.refraction_rays += o.refraction_rays;
+        self.quadric_tests += o.quadric_tests;
+        self.cone_tests += o.cone_tests;
     }
 }
 

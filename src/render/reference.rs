@@ -78,6 +78,8 @@ pub struct Reference<'a> {
     seed: u64,
     /// The recursion level traced (the scene's unless a profile caps it).
     recursion_level: u32,
+    /// Quadric objects: each nearest-hit query tests them all (`quadric_tests`).
+    quadrics: u64,
 }
 
 /// The pixel a camera ray belongs to, and its wavelengths once a ray meets glass.
@@ -118,6 +120,11 @@ impl<'a> Reference<'a> {
             caustics: None,
             seed: settings.seed,
             recursion_level: scene.recursion_level,
+            quadrics: scene
+                .objects
+                .iter()
+                .filter(|o| matches!(o.shape, Shape::Quadric(_)))
+                .count() as u64,
         };
         if scene.has_prisms() {
             r.caustics = CausticMap::build(scene, settings, &r);
@@ -161,13 +168,16 @@ impl<'a> Reference<'a> {
 
     /// Whether anything, the floor included, lies on the ray with 0 < t < t_max.
     pub fn occluded(&self, ray: &Ray, t_max: f64) -> bool {
+        self.occluded_counted(ray, t_max, &mut 0)
+    }
+
+    /// [`Reference::occluded`], adding the quadrics it tested to `quadric_tests`.
+    fn occluded_counted(&self, ray: &Ray, t_max: f64, quadric_tests: &mut u64) -> bool {
         floor::intersect_ref(ray, t_max).is_some()
-            || self
-                .scene
-                .objects
-                .iter()
-                .enumerate()
-                .any(|(i, o)| self.intersect(i, &o.shape, ray, t_max).is_some())
+            || self.scene.objects.iter().enumerate().any(|(i, o)| {
+                *quadric_tests += u64::from(matches!(o.shape, Shape::Quadric(_)));
+                self.intersect(i, &o.shape, ray, t_max).is_some()
+            })
     }
 
     /// Object `i` against `ray`: prisms through their prepared faces, every other kind
@@ -238,7 +248,11 @@ impl<'a> Reference<'a> {
         // per level: the local colour (with any branched-off light) and the weight of
         // the colour of the next level in the chain
         let mut chain: Vec<(DVec3, DVec3)> = Vec::new();
-        while let Some(found) = self.nearest(&ray, f64::INFINITY) {
+        loop {
+            stats.quadric_tests += self.quadrics;
+            let Some(found) = self.nearest(&ray, f64::INFINITY) else {
+                break;
+            };
             let (mut surf, color, m) = self.surface(&ray, &found);
             let outward = surf.normal; // unflipped: prism faces are wound outwards
             // every normal is flipped to face the incoming ray
@@ -401,6 +415,7 @@ impl<'a> Reference<'a> {
         for (lp, lc, spot) in points.chain(spots) {
             // spotlight only: skip it if the hit is outside the cone (hard edge)
             if let Some(s) = spot {
+                stats.cone_tests += 1;
                 let w = p - lp;
                 let angle = s.direction.cross(w).length().atan2(s.direction.dot(w));
                 if angle.to_degrees() > s.cutoff_deg {
@@ -422,7 +437,13 @@ impl<'a> Reference<'a> {
             let segment = lp - origin;
             let len = segment.length();
             stats.shadow_rays += 1;
-            if len > 0.0 && self.occluded(&Ray::new(origin, segment / len), len) {
+            if len > 0.0
+                && self.occluded_counted(
+                    &Ray::new(origin, segment / len),
+                    len,
+                    &mut stats.quadric_tests,
+                )
+            {
                 continue;
             }
             let r = n * (2.0 * n_dot_l) - l;
