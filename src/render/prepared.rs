@@ -44,7 +44,7 @@ pub struct Prepared<'a> {
 /// The renderer a profile picked for a scene, once.
 enum Engine<'a> {
     /// The reference, with its photon map if the scene has glass.
-    Reference(Reference<'a>),
+    Reference(Box<Reference<'a>>),
     /// The packet renderer, built at the first frame in an f32 frame centred on that
     /// frame's eye (later frames reuse it from any camera).
     Packet(Box<OnceLock<PacketRenderer>>),
@@ -70,7 +70,7 @@ impl<'a> Prepared<'a> {
                 if let Some(cap) = profile.max_recursion {
                     r.cap_recursion(cap);
                 }
-                Engine::Reference(r)
+                Engine::Reference(Box::new(r))
             }
             RenderPath::Packet => Engine::Packet(Box::default()),
         };
