@@ -9,7 +9,7 @@ use octaray::geometry::PrimSet;
 
 fn subset(r: RaySet, n: usize) -> RaySet {
     // every k-th packet of 8, so coherent rays stay in their packets
-    let step = r.origin.len() / n;
+    let step = r.origin.len() / (n / 8);
     let idx: Vec<usize> = (0..n / 8)
         .flat_map(|p| (0..8).map(move |k| p * step + k))
         .collect();
