@@ -33,8 +33,9 @@ pub const BAND_ROWS: u32 = 4;
 
 /// Packets with at most this many active lanes are traced lane by lane with the
 /// single-ray traversal (0 disables the fallback).
-// Measured on the given scene at 768², recursion level 4, 1 thread (octaray render
-// --threads 1, best of 5): see benches/README.md for the figures behind this choice.
+// criterion frame/given256/fast_prebuilt_fallback{0,1,2,4}: 12.0 / 13.2 / 12.8 / 9.5 ms,
+// measured under heavy load from other jobs (±15 %): not yet conclusive, see
+// benches/README.md. Mirror packets of the given scene rarely drop below 4 lanes.
 pub const FALLBACK_LANES: u32 = 1;
 
 /// The mirror chain of a packet: per level the local colour, kr and the lanes that hit.
