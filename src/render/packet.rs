@@ -35,7 +35,7 @@ pub const BAND_ROWS: u32 = 4;
 /// single-ray traversal (0 disables the fallback).
 // criterion frame/given256/fast_prebuilt_fallback{0,1,2,4}: 12.0 / 13.2 / 12.8 / 9.5 ms,
 // measured under heavy load from other jobs (±15 %): not yet conclusive, see
-// benches/README.md. Mirror packets of the given scene rarely drop below 4 lanes.
+// benches/README.md.
 pub const FALLBACK_LANES: u32 = 1;
 
 /// The mirror chain of a packet: per level the local colour, kr and the lanes that hit.
