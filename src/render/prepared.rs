@@ -200,6 +200,7 @@ fn packet_supersampled(p: &PacketRenderer, settings: &RenderSettings, n: u32) ->
     render_bands(settings, BAND_ROWS, |first_row, pixels| {
         let mut stats = RenderStats::default();
         let mut steps = Steps::default();
+        let mut chain = Vec::new();
         let rows = pixels.len() / width;
         let big_rows = rows * nn;
         let big_first = first_row as usize * nn;
@@ -219,7 +220,7 @@ fn packet_supersampled(p: &PacketRenderer, settings: &RenderSettings, n: u32) ->
                 let q = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
                 let d = q * (f32x8::splat(1.0) / q.length());
                 let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                let c = p.trace(&ray, active, &mut stats, &mut steps);
+                let c = p.trace_with(&ray, active, &mut chain, &mut stats, &mut steps);
                 stats.primary_rays += active.count() as u64;
                 let (r, g, b) = (c.x.to_array(), c.y.to_array(), c.z.to_array());
                 for lane in 0..8 {
