@@ -166,13 +166,16 @@ impl Triangle32 {
         if det == 0.0 {
             return None;
         }
-        // scaled distance, compared without dividing
+        // scaled distance, compared without dividing (against a bound 4 ulp above
+        // t_max, so that t == t_max survives the rounding of the product and exact
+        // ties reach the caller; the division below decides)
         let z = p.map(|q| q.z * r.shear.z);
         let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
-        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+        let t_lim = t_max * (1.0 + 4.0 * f32::EPSILON);
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_lim * det) {
             return None;
         }
-        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_lim * det) {
             return None;
         }
         let inv_det = 1.0 / det;
@@ -235,7 +238,8 @@ impl Triangle32 {
         let sign = det & f32x8::splat(-0.0);
         let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
         let adet = det.abs();
-        let valid = valid & ts.gt(zero) & ts.le(t_max * adet);
+        let t_lim = t_max * f32x8::splat(1.0 + 4.0 * f32::EPSILON);
+        let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
         if valid.none() {
             return (valid, zero, zero, zero);
         }
