@@ -111,7 +111,10 @@ impl BvhNode {
         let t0 = (Vec3A::from(self.lo) - o) * inv;
         let t1 = (Vec3A::from(self.hi) - o) * inv;
         let near = t0.min(t1).max_element().max(0.0);
-        let far = (t0.max(t1).min_element() * FAR_WIDEN).min(t_max);
+        // Widened after clamping to t_max, so a box whose entry equals the current
+        // hit (a coincident surface in another leaf) is still entered and the tie
+        // rule (lower object index wins) sees it.
+        let far = t0.max(t1).min_element().min(t_max) * FAR_WIDEN;
         (near <= far).then_some(near)
     }
 
@@ -134,7 +137,8 @@ impl BvhNode {
         let (ny, fy) = slab(self.lo[1], self.hi[1], r.origin.y, r.inv_dir.y);
         let (nz, fz) = slab(self.lo[2], self.hi[2], r.origin.z, r.inv_dir.z);
         let near = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::ZERO));
-        let far = (fx.fast_min(fy).fast_min(fz) * f32x8::splat(FAR_WIDEN)).fast_min(t_max);
+        // widened after clamping to t_max: see `intersect_1`
+        let far = fx.fast_min(fy).fast_min(fz).fast_min(t_max) * f32x8::splat(FAR_WIDEN);
         active & near.le(far)
     }
 }
