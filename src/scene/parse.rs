@@ -270,6 +270,14 @@ impl<'a> Reader<'a> {
         Ok((DVec3::new(x, y, z), t))
     }
 
+    /// A light's colour: any finite r g b (the spec sets no range for lights).
+    fn color(&mut self, field: &str) -> Result<DVec3, ParseError> {
+        let (r, _) = self.number(&format!("{field}.r"))?;
+        let (g, _) = self.number(&format!("{field}.g"))?;
+        let (b, _) = self.number(&format!("{field}.b"))?;
+        Ok(DVec3::new(r, g, b))
+    }
+
     fn color_ge0(&mut self, field: &str) -> Result<DVec3, ParseError> {
         let r = self.number_ge0(&format!("{field}.r"))?;
         let g = self.number_ge0(&format!("{field}.g"))?;
@@ -334,7 +342,7 @@ impl<'a> Reader<'a> {
         for k in 1..=n_point {
             let who = format!("point light {k}");
             let (position, _) = self.vec3(&format!("{who}: position"))?;
-            let (color, _) = self.vec3(&format!("{who}: color"))?;
+            let color = self.color(&format!("{who}: color"))?;
             point_lights.push(PointLight { position, color });
         }
 
@@ -359,7 +367,7 @@ impl<'a> Reader<'a> {
                 for k in 1..=n_spot {
                     let who = format!("spot light {k}");
                     let (position, _) = self.vec3(&format!("{who}: position"))?;
-                    let (color, _) = self.vec3(&format!("{who}: color"))?;
+                    let color = self.color(&format!("{who}: color"))?;
                     let (direction, dt) = self.vec3(&format!("{who}: direction"))?;
                     let len = direction.length();
                     if !(len > 0.0 && len.is_finite()) {

@@ -1,0 +1,550 @@
+//! The robustness catalogue of `shared/robustness.md`, at image level, on every path.
+//!
+//! Each test states its pass criterion. "Matches" means: compared with the reference
+//! render of the same scene, PSNR >= 40 dB and at most 0.5 % of pixels off by more
+//! than 2/255 outside the masks of legitimate differences (see `common::compare`).
+//! NaN cannot hide: a NaN colour quantizes to black, which the comparisons catch.
+//! Figures are printed (`cargo test --test extremes -- --nocapture`).
+
+mod common;
+
+use common::{compare, reference_ids};
+use glam::DVec3;
+use octaray::output::Framebuffer;
+use octaray::render::RenderSettings;
+use octaray::render::profile::Profile;
+use octaray::scene::parse::parse_scene;
+use octaray::scene::{Camera, Quadric, Scene, Shape};
+
+/// Every profile that renders the spec's exact picture, the oracle first (`preview`
+/// renders at reduced resolution by design and is measured in profiles/TRADEOFF.md).
+const PROFILES: &[&str] = &["reference", "accurate", "fast"];
+
+fn scene(text: &str) -> Scene {
+    parse_scene(text, "inline")
+        .unwrap_or_else(|e| panic!("{e}"))
+        .scene
+}
+
+fn settings(scene: &Scene, camera: Camera, size: u32) -> RenderSettings {
+    let mut s = RenderSettings::for_scene(scene);
+    s.camera = camera;
+    s.width = size;
+    s.height = size;
+    s
+}
+
+fn render(profile: &str, scene: &Scene, camera: Camera, size: u32) -> Framebuffer {
+    Profile::by_name(profile)
+        .unwrap()
+        .render(scene, &settings(scene, camera, size))
+        .image
+}
+
+/// Renders on every profile and checks each against the reference; returns the images.
+fn matches_everywhere(name: &str, scene: &Scene, camera: Camera, size: u32) -> Vec<Framebuffer> {
+    matches_with_psnr(name, scene, camera, size, 40.0)
+}
+
+/// As [`matches_everywhere`] with another PSNR floor, for views dominated by legitimate
+/// edge differences (a checkerboard seen edge-on at the horizon aliases: f32 and f64
+/// pick different tiles for most of those pixels, all of them inside the edge masks).
+fn matches_with_psnr(
+    name: &str,
+    scene: &Scene,
+    camera: Camera,
+    size: u32,
+    min_psnr: f64,
+) -> Vec<Framebuffer> {
+    let reference = render("reference", scene, camera, size);
+    let ids = reference_ids(scene, &camera, size);
+    let mut out = vec![reference.clone()];
+    for p in &PROFILES[1..] {
+        let img = render(p, scene, camera, size);
+        let d = compare(&reference, &img, &ids);
+        println!(
+            "{name} [{p}]: psnr {:.1} dB, max {}, off>2 outside masks {} ({:.3} %)",
+            d.psnr_db,
+            d.max_diff,
+            d.off2_unmasked,
+            100.0 * d.unmasked_fraction()
+        );
+        assert!(d.psnr_db >= min_psnr, "{name} [{p}]: PSNR {:.1}", d.psnr_db);
+        assert!(d.unmasked_fraction() <= 0.005, "{name} [{p}]: {d:?}");
+        out.push(img);
+    }
+    out
+}
+
+// ------------------------------------------------------------ 1. zero direction components
+
+/// Axis-aligned views: the centre row and column of an odd-sized image have direction
+/// components of exactly ±0, and many rays start on slab planes of axis-aligned boxes.
+#[test]
+fn axis_aligned_views_with_zero_direction_components() {
+    let s = Scene::given();
+    let views = [
+        (
+            "along -x",
+            DVec3::new(150.0, 0.0, 30.0),
+            DVec3::NEG_X,
+            DVec3::Z,
+        ),
+        (
+            "along +y",
+            DVec3::new(0.0, -150.0, 30.0),
+            DVec3::Y,
+            DVec3::Z,
+        ),
+        (
+            "straight down",
+            DVec3::new(0.0, 0.0, 150.0),
+            DVec3::NEG_Z,
+            DVec3::Y,
+        ),
+    ];
+    for (name, eye, look, up) in views {
+        let cam = Camera::from_look(eye, look, up, 80.0).unwrap();
+        let d = cam.pixel_grid(65, 65).direction(32.0, 32.0);
+        assert!(d.x == 0.0 || d.y == 0.0 || d.z == 0.0, "{name}: {d}");
+        // The horizontal views put the horizon row at exactly d.z = 0 with the far
+        // floor aliasing beneath it; the view straight down has no horizon.
+        let min_psnr = if look.z == 0.0 { 20.0 } else { 40.0 };
+        matches_with_psnr(name, &s, cam, 65, min_psnr);
+    }
+}
+
+// ------------------------------------------------------------ 2. closed mesh from inside
+
+/// A closed sphere of ~1900 randomly perturbed triangles around the camera, ambient
+/// only: every pixel must show its inside, (128, 0, 128) exactly. An escaped ray
+/// would show the floor or the black sky.
+#[test]
+fn no_ray_escapes_a_closed_perturbed_mesh() {
+    let centre = Camera::default().eye;
+    let (nu, nv) = (48, 20);
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut jitter = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    // Shared vertices, perturbed once, so the mesh stays closed.
+    let mut verts = vec![centre + DVec3::new(0.0, 0.0, 30.0)];
+    for j in 1..nv {
+        for i in 0..nu {
+            let th = std::f64::consts::PI * j as f64 / nv as f64;
+            let ph = std::f64::consts::TAU * i as f64 / nu as f64;
+            let r = 30.0 * (1.0 + 0.08 * jitter());
+            verts.push(centre + DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()) * r);
+        }
+    }
+    verts.push(centre - DVec3::new(0.0, 0.0, 30.0));
+    let last = verts.len() - 1;
+    let ring = |j: usize, i: usize| 1 + (j - 1) * nu + i % nu;
+    let mut tris = Vec::new();
+    for i in 0..nu {
+        tris.push([0, ring(1, i), ring(1, i + 1)]);
+        tris.push([last, ring(nv - 1, i + 1), ring(nv - 1, i)]);
+        for j in 1..nv - 1 {
+            tris.push([ring(j, i), ring(j + 1, i), ring(j + 1, i + 1)]);
+            tris.push([ring(j, i), ring(j + 1, i + 1), ring(j, i + 1)]);
+        }
+    }
+    let mut text = format!("1 1 {}\n", tris.len());
+    for t in &tris {
+        text.push_str("triangle");
+        for &k in t {
+            let v = verts[k];
+            text.push_str(&format!(" {} {} {}", v.x, v.y, v.z));
+        }
+        text.push_str(" 1 0 1  0.5 0 0 0 1\n");
+    }
+    text.push_str("0 0");
+    let s = scene(&text);
+    for cam in [
+        Camera::default(),
+        Camera::from_look(
+            centre + DVec3::new(3.0, -7.0, 11.0),
+            DVec3::new(0.3, 0.2, -1.0),
+            DVec3::Z,
+            100.0,
+        )
+        .unwrap(),
+    ] {
+        for p in PROFILES {
+            let img = render(p, &s, cam, 64);
+            let leaks = img.pixels.iter().filter(|&&px| px != [128, 0, 128]).count();
+            assert_eq!(leaks, 0, "[{p}] {leaks} rays escaped the closed mesh");
+        }
+    }
+}
+
+// ------------------------------------------------------------ 5. degenerate triangles
+
+#[test]
+fn degenerate_triangles_change_nothing() {
+    let sphere = "sphere 0 0 20 20  1 0.2 0.2  0.3 0.5 0.4 0.3 20";
+    let degenerate = [
+        "triangle 0 0 0  0 0 0  0 0 50",      // repeated vertex
+        "triangle -50 0 10  0 0 10  50 0 10", // collinear
+        "triangle 0 -30 30  1e-15 -30 30  0 -30 30.000000000000004", // area ~1e-30
+    ];
+    let with: String = degenerate
+        .iter()
+        .map(|t| format!("{t} 0 1 0  0.4 0.2 0.2 0.2 5\n"))
+        .collect();
+    let lights = "1  60 -20 100  1 1 1  0";
+    let alone = scene(&format!("3 64 1 {sphere} {lights}"));
+    let mixed = scene(&format!("3 64 4 {with} {sphere} {lights}"));
+    for p in PROFILES {
+        assert_eq!(
+            render(p, &alone, Camera::default(), 64),
+            render(p, &mixed, Camera::default(), 64),
+            "[{p}]"
+        );
+    }
+}
+
+// ------------------------------------------------------------ 7. scale and translation
+
+/// Maps a scene through p' = eye + s·(p − eye) + shift (and the camera with it).
+fn transformed(scene: &Scene, eye: DVec3, s: f64, shift: DVec3) -> Scene {
+    let f = |p: DVec3| eye + (p - eye) * s + shift;
+    let mut out = scene.clone();
+    for o in &mut out.objects {
+        o.shape = match &o.shape {
+            Shape::Sphere { center, radius } => Shape::Sphere {
+                center: f(*center),
+                radius: radius * s,
+            },
+            Shape::Triangle { v } => Shape::Triangle { v: v.map(f) },
+            Shape::Quadric(q) => Shape::Quadric(transform_quadric(q, eye, s, shift)),
+            other => other.clone(),
+        };
+    }
+    for l in &mut out.point_lights {
+        l.position = f(l.position);
+    }
+    for l in &mut out.spot_lights {
+        l.position = f(l.position);
+    }
+    out
+}
+
+/// F'(p') = F(u·p' + c) with u = 1/s, c = eye − (eye + shift)·u, renormalised.
+fn transform_quadric(q: &Quadric, eye: DVec3, s: f64, shift: DVec3) -> Quadric {
+    let [a, b, cc, d, e, f, g, h, i, _] = q.coef;
+    let u = 1.0 / s;
+    let c = eye - (eye + shift) * u;
+    // quadratic part: u²·A; linear part: u·(2·A·c + g); constant: F(c)
+    let m = [
+        [a, d / 2.0, e / 2.0],
+        [d / 2.0, b, f / 2.0],
+        [e / 2.0, f / 2.0, cc],
+    ];
+    let mc = DVec3::new(
+        m[0][0] * c.x + m[0][1] * c.y + m[0][2] * c.z,
+        m[1][0] * c.x + m[1][1] * c.y + m[1][2] * c.z,
+        m[2][0] * c.x + m[2][1] * c.y + m[2][2] * c.z,
+    );
+    let lin = (mc * 2.0 + DVec3::new(g, h, i)) * u;
+    let konst = q.value(c);
+    let mut coef = [
+        a * u * u,
+        b * u * u,
+        cc * u * u,
+        d * u * u,
+        e * u * u,
+        f * u * u,
+        lin.x,
+        lin.y,
+        lin.z,
+        konst,
+    ];
+    let scale = coef.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    coef.iter_mut().for_each(|x| *x /= scale);
+    Quadric {
+        coef,
+        min: eye + (q.min - eye) * s + shift,
+        size: q.size * s,
+    }
+}
+
+/// Objects and lights above the eye, the camera looking 45° up, no mirrors: every
+/// primary ray rises and every shadow segment stays above the eye, so no ray of this
+/// scene can reach the (fixed, untransformable) floor, and any copy scaled about the
+/// eye or translated must render the same picture.
+fn floorless_scene() -> (Scene, Camera) {
+    let s = scene(
+        "1 96 6
+         sphere 60 -15 150  18   1 0.3 0.2   0.2 0.6 0.4 0 30
+         sphere 40 22 160  12    0.2 0.5 1   0.2 0.6 0.4 0 10
+         triangle 40 -30 195  85 -5 205  55 30 215   0.2 1 0.3  0.2 0.6 0.3 0 5
+         triangle 0 0 382  212 180 170  212 -180 170   0.9 0.9 0.9  0.2 0.6 0.3 0 5
+         general 0.01 0.0277777 0.015625 0 0 0 -1.4 -0.2777777 -4.375 355.9722222
+                 0 0 120   0 0 22     1 0.8 0.2  0.2 0.6 0.4 0 20
+         general 1 1 0 0 0 0 -150 50 0 6150  0 0 120  0 0 40   0.6 0.6 0.6  0.2 0.5 0.5 0 40
+         1  30 -40 110  1 1 1
+         1  20 40 105  0.6 0.6 1  40 -40 65  25",
+    );
+    let cam = Camera::from_look(
+        DVec3::new(0.0, 0.0, 100.0),
+        DVec3::new(1.0, 0.0, 1.0),
+        DVec3::Z,
+        80.0,
+    )
+    .unwrap();
+    (s, cam)
+}
+
+#[test]
+fn scaled_and_translated_scenes_render_the_same_picture() {
+    let (base, cam) = floorless_scene();
+    let size = 96;
+    let original = render("reference", &base, cam, size);
+    let lit = original.pixels.iter().filter(|p| **p != [0, 0, 0]).count();
+    assert!(
+        lit > size as usize * size as usize / 4,
+        "the scene fills the view ({lit})"
+    );
+    let cases = [
+        ("scale 1e-4", 1e-4, DVec3::ZERO),
+        ("scale 1e4", 1e4, DVec3::ZERO),
+        ("translate 1e5", 1.0, DVec3::new(1e5, 1e5, 0.0)),
+        ("translate 1e6", 1.0, DVec3::new(1e6, 0.0, 1e6)),
+    ];
+    for (name, s, shift) in cases {
+        let t = transformed(&base, cam.eye, s, shift);
+        let tcam = Camera {
+            eye: cam.eye + shift,
+            ..cam
+        };
+        // The oracle holds at every scale: the same picture as the untransformed scene.
+        let ids = reference_ids(&base, &cam, size);
+        let r = render("reference", &t, tcam, size);
+        let d = compare(&original, &r, &ids);
+        println!(
+            "{name} [reference vs untransformed]: psnr {:.1} dB, max {}, off>2 {}",
+            d.psnr_db, d.max_diff, d.off2
+        );
+        assert!(d.off2 <= 2 && d.psnr_db >= 50.0, "{name}: reference {d:?}");
+        // Every other profile matches the oracle on the transformed scene.
+        matches_everywhere(name, &t, tcam, size);
+    }
+}
+
+// ------------------------------------------------------------ 8. quadrics
+
+#[test]
+fn quadric_extremes() {
+    let lights = "2  60 -40 120  1 1 1  -50 60 90  0.5 0.5 0.5  0";
+    let cases = [
+        // a plane z = 5 (A..F = 0), clipped to a square
+        (
+            "plane",
+            "general 0 0 0 0 0 0 0 0 1 -5  -30 -30 0  60 60 0  0.9 0.9 0.2  0.3 0.5 0.3 0.2 10",
+        ),
+        // the all-zero quadric: never hit
+        (
+            "all zero",
+            "general 0 0 0 0 0 0 0 0 0 0  0 0 0 0 0 0  1 0 0  0.3 0.5 0.3 0.2 10",
+        ),
+        // coefficients scaled by 1e20 and 1e-20: the same surface
+        (
+            "cylinder 1e20",
+            "general 1e20 1e20 0 0 0 0 0 0 0 -4e22  0 0 0  0 0 50  0.2 0.6 1  0.3 0.5 0.3 0.2 10",
+        ),
+        (
+            "cylinder 1e-20",
+            "general 1e-20 1e-20 0 0 0 0 0 0 0 -4e-18  0 0 0  0 0 50  0.2 0.6 1  0.3 0.5 0.3 0.2 10",
+        ),
+        // a paraboloid z = (x² + y²)/10
+        (
+            "paraboloid",
+            "general 1 1 0 0 0 0 0 0 -10 0  0 0 0  0 0 60  1 0.5 0.2  0.3 0.5 0.3 0.2 10",
+        ),
+    ];
+    let mut cylinders = Vec::new();
+    for (name, obj) in cases {
+        let s = scene(&format!("3 64 1 {obj} {lights}"));
+        // Looking straight down the z axis: rays nearly parallel to the axis of the
+        // cylinder and the paraboloid.
+        let down =
+            Camera::from_look(DVec3::new(0.5, 0.25, 200.0), DVec3::NEG_Z, DVec3::Y, 30.0).unwrap();
+        let imgs = matches_everywhere(name, &s, down, 64);
+        matches_everywhere(name, &s, Camera::default(), 64);
+        if name.starts_with("cylinder") {
+            cylinders.push(imgs);
+        }
+        if name == "all zero" {
+            let empty = scene(&format!("3 64 0 {lights}"));
+            for p in PROFILES {
+                assert_eq!(
+                    render(p, &s, Camera::default(), 64),
+                    render(p, &empty, Camera::default(), 64)
+                );
+            }
+        }
+    }
+    assert_eq!(
+        cylinders[0], cylinders[1],
+        "scaling the coefficients changes nothing"
+    );
+    // The camera at the centre of an unclipped ellipsoid (semi-axes 100, 100, 50)
+    // sees its lit inside.
+    let inside = scene(
+        "2 64 1 general 0.01 0.01 0.04 0 0 0 -2 -2 -4 200  0 0 0 0 0 0  0.9 0.7 0.5  0.3 0.5 0.3 0.2 10
+         1 100 100 60  1 1 1  0",
+    );
+    let imgs = matches_everywhere("inside ellipsoid", &inside, Camera::default(), 64);
+    assert!(
+        imgs[0].pixels.iter().all(|p| p[0] >= 69),
+        "every pixel shows the inside"
+    );
+}
+
+// ------------------------------------------------------------ 9. recursion extremes
+
+#[test]
+fn recursion_levels_0_1_and_1000_between_facing_mirrors() {
+    // Two parallel mirrors (kr = 1) 20 apart; the camera between them looks nearly
+    // perpendicular to them, so rays bounce hundreds of times.
+    let mirror = |x: f64, flip: bool| {
+        let (b, c) = if flip {
+            ("50 300 100", "50 -300 100")
+        } else {
+            ("50 -300 100", "50 300 100")
+        };
+        let (b, c) = (
+            b.replace("50 ", &format!("{x} ")),
+            c.replace("50 ", &format!("{x} ")),
+        );
+        format!(
+            "triangle {x} -300 -100 {b} {c}  0.9 0.9 0.9  0.1 0.1 0.1 1 10\n\
+                 triangle {x} -300 -100 {x} 300 -100 {c}  0.9 0.9 0.9  0.1 0.1 0.1 1 10\n"
+        )
+    };
+    let body = format!(
+        "5 {}{}sphere 10 0 50 3  1 0.2 0.1  0.3 0.6 0.3 0.2 20\n1 10 0 90  1 1 1 0",
+        mirror(0.0, false),
+        mirror(20.0, true)
+    );
+    let cam = Camera::from_look(
+        DVec3::new(10.0, -40.0, 50.0),
+        DVec3::new(0.05, 1.0, 0.0),
+        DVec3::Z,
+        60.0,
+    )
+    .unwrap();
+    let mut previous: Option<Framebuffer> = None;
+    for level in [0, 1, 1000] {
+        let s = scene(&format!("{level} 48 {body}"));
+        let imgs = matches_everywhere(&format!("mirrors level {level}"), &s, cam, 48);
+        if level == 1 {
+            assert_eq!(previous.as_ref(), Some(&imgs[0]), "levels 0 and 1 agree");
+        }
+        previous = Some(imgs[0].clone());
+    }
+}
+
+// ------------------------------------------------------------ 10. spotlight cutoffs
+
+#[test]
+fn spotlight_cutoffs_0_90_180() {
+    let objects = "1 64 1 sphere 0 0 20 20  1 1 1  0.2 0.5 0.4 0.2 20";
+    let point = scene(&format!("{objects} 1  30 -30 90  1 1 1  0"));
+    let dark = scene(&format!("{objects} 0  0"));
+    let spot = |cutoff: &str| {
+        scene(&format!(
+            "{objects} 0  1  30 -30 90  1 1 1  1 0 0  {cutoff}"
+        ))
+    };
+    for p in PROFILES {
+        let cam = Camera::default();
+        assert_eq!(
+            render(p, &spot("180"), cam, 64),
+            render(p, &point, cam, 64),
+            "[{p}] 180° is a point light"
+        );
+        let zero = render(p, &spot("0"), cam, 64);
+        let none = render(p, &dark, cam, 64);
+        let lit = zero
+            .pixels
+            .iter()
+            .zip(&none.pixels)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(
+            lit <= 1,
+            "[{p}] a 0° cone lights at most the pixel on its axis ({lit})"
+        );
+        let half = render(p, &spot("90"), cam, 64);
+        let differs = |a: &Framebuffer, b: &Framebuffer| {
+            a.pixels
+                .iter()
+                .zip(&b.pixels)
+                .filter(|(x, y)| x != y)
+                .count()
+        };
+        assert!(
+            differs(&half, &none) > 100 && differs(&half, &render(p, &point, cam, 64)) > 100,
+            "[{p}] 90° lights half the space"
+        );
+    }
+    matches_everywhere("spot 90", &spot("90"), Camera::default(), 64);
+}
+
+// ------------------------------------------------------------ 11. lights and cameras inside
+
+#[test]
+fn light_inside_a_closed_sphere_lights_nothing_outside() {
+    let objects = "1 64 2 sphere 0 0 30 10  1 1 1  0.2 0.5 0.4 0.2 20 \
+                   sphere -30 30 15 15  0.2 0.6 1  0.2 0.5 0.4 0.2 20";
+    let inside = scene(&format!(
+        "{objects} 1  0 0 30  1 1 1  1  0 0 32  1 1 1  0 0 1  45"
+    ));
+    let dark = scene(&format!("{objects} 0 0"));
+    for p in PROFILES {
+        assert_eq!(
+            render(p, &inside, Camera::default(), 64),
+            render(p, &dark, Camera::default(), 64),
+            "[{p}]"
+        );
+    }
+}
+
+#[test]
+fn camera_exactly_on_a_surface() {
+    // The default eye lies exactly on this sphere (|eye − c| = 30 with c = eye − (0,0,30))
+    // and on this plane quadric z = 50.
+    let s = scene(
+        "2 64 2 sphere 100 100 20 30  0.9 0.9 0.3  0.3 0.5 0.3 0.2 10 \
+         general 0 0 0 0 0 0 0 0 1 -50  -60 -60 0 120 120 0  0.3 0.9 0.3  0.3 0.5 0.3 0.2 10 \
+         1 0 0 150  1 1 1  0",
+    );
+    matches_everywhere("eye on a surface", &s, Camera::default(), 64);
+}
+
+// ------------------------------------------------------------ 12. coincident surfaces
+
+#[test]
+fn coincident_surfaces_go_to_the_first_listed_on_every_path() {
+    let tri = "-40 -40 10  40 -40 10  0 40 10";
+    let s = scene(&format!(
+        "1 64 4 triangle {tri}  1 0 0  1 0 0 0 1  triangle {tri}  0 1 0  1 0 0 0 1 \
+         sphere -20 20 30 12  0 0 1  1 0 0 0 1  sphere -20 20 30 12  1 1 0  1 0 0 0 1  0 0"
+    ));
+    let cam = Camera::from_look(DVec3::new(0.0, 0.0, 200.0), DVec3::NEG_Z, DVec3::Y, 40.0).unwrap();
+    for p in PROFILES {
+        let img = render(p, &s, cam, 64);
+        assert!(
+            img.pixels
+                .iter()
+                .all(|px| *px != [0, 255, 0] && *px != [255, 255, 0]),
+            "[{p}] a second-listed twin won"
+        );
+        assert!(img.pixels.contains(&[255, 0, 0]) && img.pixels.contains(&[0, 0, 255]));
+    }
+}
