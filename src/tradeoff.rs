@@ -247,7 +247,7 @@ fn counted(path: RenderPath, n: u64) -> String {
 }
 
 /// Whether the packet path fills `quadric_tests` and `cone_tests`.
-const COUNTED_ON_PACKET_PATH: bool = false;
+const COUNTED_ON_PACKET_PATH: bool = true;
 
 fn pct(d: &ImageDiff, n: usize) -> String {
     format!("{:.2}", d.percent(n))

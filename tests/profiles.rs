@@ -328,3 +328,68 @@ fn accuracy_bars_on_every_scene() {
         assert!(a.percent(a.off2_unmasked) <= 0.1, "{name} accurate: {a:?}");
     }
 }
+
+/// The packet-path knobs change the code that runs: closest-hit shadow queries give
+/// the any-hit image; a fixed ray offset is close at the scene's scale and visibly
+/// wrong when far too large; the Möller test is refused (not implemented).
+#[test]
+fn packet_knobs_are_real() {
+    let scene = Scene::given();
+    let s = settings(96);
+    let want = reference::render(&scene, &s).image;
+    let ids = reference_ids(&scene, &s.camera, 96, 96);
+    let base = custom("").render(&scene, &s).image;
+    let closest = custom("shadow_any_hit = false").render(&scene, &s);
+    let d = compare(&base, &closest.image, &ids);
+    assert!(d.psnr_db >= 60.0, "closest-hit shadows: {d:?}");
+    let eps = custom("ray_offset = \"epsilon:1e-3\"")
+        .render(&scene, &s)
+        .image;
+    let d = compare(&want, &eps, &ids);
+    assert!(d.psnr_db >= 40.0, "epsilon 1e-3: {d:?}");
+    let huge = custom("ray_offset = \"epsilon:3\"")
+        .render(&scene, &s)
+        .image;
+    let d = compare(&want, &huge, &ids);
+    assert!(
+        d.psnr_db < 40.0,
+        "epsilon 3 should visibly move shadows: {d:?}"
+    );
+    let e = error("path = \"packet\"\ntriangle_test = \"moller\"\n");
+    assert!(
+        e.starts_with("profiles/bad.toml:2:1:") && e.contains("triangle_test"),
+        "{e}"
+    );
+}
+
+/// A scene runs only the code it needs: no quadric tests without quadrics, no cone
+/// tests without spotlights, no mirror rays at recursion level 1 — on both paths.
+#[test]
+fn counters_are_zero_for_absent_features() {
+    let scenes = scenes();
+    let get = |n: &str| &scenes.iter().find(|(name, _)| name == n).unwrap().1;
+    let s = settings(64);
+    for profile in ["reference", "fast"] {
+        let p = Profile::by_name(profile).unwrap();
+        let given = p.render(get("given"), &s).stats;
+        assert!(
+            given.quadric_tests > 0 && given.cone_tests > 0,
+            "{profile}: {given:?}"
+        );
+        assert!(given.reflection_rays > 0, "{profile}");
+        let spots = p.render(get("spotlights"), &s).stats;
+        assert_eq!(
+            spots.quadric_tests, 0,
+            "{profile}: spotlights.txt has no quadric"
+        );
+        assert!(spots.cone_tests > 0, "{profile}");
+        let cone = p.render(get("quadric_cone"), &s).stats;
+        assert_eq!(
+            cone.cone_tests, 0,
+            "{profile}: quadric_cone.txt has no spotlight"
+        );
+        let one = get("one_sphere");
+        assert_eq!(one.recursion_level, 1);
+        assert_eq!(p.render(one, &s).stats.reflection_rays, 0, "{profile}");
+    }
+}

@@ -162,6 +162,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
         .reduce(Steps::default, |a, b| Steps {
             boxes: a.boxes + b.boxes,
             prims: a.prims + b.prims,
+            quadrics: a.quadrics + b.quadrics,
         })
 }
 

@@ -33,6 +33,9 @@ pub const STACK_SIZE: usize = 96;
 pub struct Steps {
     pub boxes: u64,
     pub prims: u64,
+    /// Ray–quadric tests, per ray (per active lane in packets): zero in a scene
+    /// without quadrics (`RenderStats::quadric_tests`).
+    pub quadrics: u64,
 }
 
 /// A BVH over a primitive set, with the unbounded primitives beside it.

@@ -23,6 +23,9 @@ impl Bvh {
                     if node.is_leaf() {
                         let count = node.count() as usize;
                         steps.prims += count as u64;
+                        if node.kind() == PrimKind::Quadric {
+                            steps.quadrics += count as u64;
+                        }
                         self.prims
                             .intersect_1(node.kind(), node.first as usize, count, r, hit);
                     } else {
@@ -73,6 +76,7 @@ impl Bvh {
         let nq = self.prims.free_quadrics.len();
         if nq > 0 {
             steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
             self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
         }
         if self.prims.floor.is_some() {
@@ -92,6 +96,7 @@ impl Bvh {
         let nq = self.prims.free_quadrics.len();
         if nq > 0 {
             steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
             if self
                 .prims
                 .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
@@ -114,6 +119,9 @@ impl Bvh {
             if node.is_leaf() {
                 let count = node.count() as usize;
                 steps.prims += count as u64;
+                if node.kind() == PrimKind::Quadric {
+                    steps.quadrics += count as u64;
+                }
                 if self
                     .prims
                     .occluded_1(node.kind(), node.first as usize, count, r, t_max)

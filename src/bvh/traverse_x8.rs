@@ -37,6 +37,9 @@ impl Bvh {
                 if node.is_leaf() {
                     let count = node.count() as usize;
                     steps.prims += count as u64;
+                    if node.kind() == PrimKind::Quadric {
+                        steps.quadrics += (count * m.count() as usize) as u64;
+                    }
                     self.prims
                         .intersect_x8(node.kind(), node.first as usize, count, r, m, hit);
                 } else {
@@ -62,6 +65,7 @@ impl Bvh {
         let nq = self.prims.free_quadrics.len();
         if nq > 0 {
             steps.prims += nq as u64;
+            steps.quadrics += (nq * active.count() as usize) as u64;
             self.prims
                 .intersect_x8(PrimKind::FreeQuadric, 0, nq, r, active, hit);
         }
@@ -93,6 +97,7 @@ impl Bvh {
         let nq = self.prims.free_quadrics.len();
         if nq > 0 && left.any() {
             steps.prims += nq as u64;
+            steps.quadrics += (nq * left.count() as usize) as u64;
             left =
                 left.and_not(
                     self.prims
@@ -113,6 +118,9 @@ impl Bvh {
                 if node.is_leaf() {
                     let count = node.count() as usize;
                     steps.prims += count as u64;
+                    if node.kind() == PrimKind::Quadric {
+                        steps.quadrics += (count * m.count() as usize) as u64;
+                    }
                     let blocked = self.prims.occluded_x8(
                         node.kind(),
                         node.first as usize,

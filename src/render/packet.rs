@@ -85,6 +85,13 @@ pub struct PacketRenderer {
     recursion_level: u32,
     /// Packets with at most this many active lanes use the single-ray traversal.
     pub fallback_lanes: u32,
+    /// Shadow rays stop at their first blocker (any-hit); `false` runs a closest-hit
+    /// query instead (profile knob `shadow_any_hit`, chosen once per frame).
+    pub shadow_any_hit: bool,
+    /// Secondary rays leave surfaces by this fixed distance along the normal instead
+    /// of the hit's error bound (profile knob `ray_offset = "epsilon:<value>"`,
+    /// chosen once per frame).
+    pub offset_epsilon: Option<f32>,
 }
 
 /// The per-lane surface data a level's shading needs, gathered for the winners.
@@ -134,6 +141,8 @@ impl PacketRenderer {
             lights: points.chain(spots).collect(),
             recursion_level: scene.recursion_level,
             fallback_lanes: FALLBACK_LANES,
+            shadow_any_hit: true,
+            offset_epsilon: None,
         }
     }
 
@@ -178,6 +187,31 @@ impl PacketRenderer {
             Mask8::from_bits(bits)
         } else {
             self.bvh.occluded_x8(r, active, t_max, steps)
+        }
+    }
+
+    /// Lanes of `active` whose nearest hit lies before `t_max` (the shadow query with
+    /// `shadow_any_hit = false`).
+    fn occluded_closest(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let hit = self.closest(r, active, steps);
+        active & hit.hit_mask() & hit.t.lt(t_max)
+    }
+
+    /// The origin of a secondary ray leaving `p` (normal `n`, error bound `err`) along
+    /// `w`: past the error bound, or by the fixed epsilon if `EPS`.
+    #[inline(always)]
+    fn leave<const EPS: bool>(&self, p: Vec3x8, err: Vec3x8, n: Vec3x8, w: Vec3x8) -> Vec3x8 {
+        if EPS {
+            let e = f32x8::splat(self.offset_epsilon.unwrap_or(0.0));
+            p + n * w.dot(n).lt(f32x8::ZERO).select(-e, e)
+        } else {
+            offset_origin_x8(p, err, n, w)
         }
     }
 
@@ -235,7 +269,7 @@ impl PacketRenderer {
 
     /// Ambient plus, per light, Phong diffuse and specular where the light is inside
     /// its cone, in front of the surface and unshadowed.
-    fn phong(
+    fn phong<const ANY_HIT: bool, const EPS: bool>(
         &self,
         g: &Gathered,
         view: Vec3x8,
@@ -251,6 +285,7 @@ impl PacketRenderer {
             let mut m = lanes;
             // spotlight only: skip lanes outside the cone (hard edge)
             if let Some((axis, cos_cut)) = light.cone {
+                stats.cone_tests += m.count() as u64;
                 let w = p - lp;
                 let inside = Vec3x8::splat(axis)
                     .dot(w)
@@ -267,13 +302,17 @@ impl PacketRenderer {
                 continue;
             }
             // shadow: anything on the segment between the surface and the light
-            let origin = offset_origin_x8(p, g.err, n, l);
+            let origin = self.leave::<EPS>(p, g.err, n, l);
             let seg = lp - origin;
             let len = seg.length();
             let m_ray = m & len.gt(zero);
             stats.shadow_rays += m.count() as u64;
             let shadow = RayPacket8::new(origin, seg * (f32x8::splat(1.0) / len), m_ray);
-            let blocked = self.occluded(&shadow, m_ray, len, steps);
+            let blocked = if ANY_HIT {
+                self.occluded(&shadow, m_ray, len, steps)
+            } else {
+                self.occluded_closest(&shadow, m_ray, len, steps)
+            };
             let lit = m.and_not(blocked);
             if lit.none() {
                 continue;
@@ -318,6 +357,29 @@ impl PacketRenderer {
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> Vec3x8 {
+        match (self.shadow_any_hit, self.offset_epsilon.is_some()) {
+            (true, false) => self.trace_knobs::<true, false>(camera, active, chain, stats, steps),
+            (true, true) => self.trace_knobs::<true, true>(camera, active, chain, stats, steps),
+            (false, false) => self.trace_knobs::<false, false>(camera, active, chain, stats, steps),
+            (false, true) => self.trace_knobs::<false, true>(camera, active, chain, stats, steps),
+        }
+    }
+
+    /// [`PacketRenderer::trace_with`] with the knobs as constants: `ANY_HIT` must be
+    /// `self.shadow_any_hit` and `EPS` `self.offset_epsilon.is_some()` (a frame loop
+    /// picks the instance once, see [`PacketRenderer::render`]).
+    pub fn trace_knobs<const ANY_HIT: bool, const EPS: bool>(
+        &self,
+        camera: &RayPacket8,
+        active: Mask8,
+        chain: &mut Chain,
+        stats: &mut RenderStats,
+        steps: &mut Steps,
+    ) -> Vec3x8 {
+        debug_assert_eq!(
+            (ANY_HIT, EPS),
+            (self.shadow_any_hit, self.offset_epsilon.is_some())
+        );
         chain.clear();
         let mut ray = *camera;
         let mut active = active;
@@ -329,7 +391,7 @@ impl PacketRenderer {
                 break;
             }
             let g = self.gather(&ray, &hit, lanes);
-            let local = self.phong(&g, -ray.dir, lanes, stats, steps);
+            let local = self.phong::<ANY_HIT, EPS>(&g, -ray.dir, lanes, stats, steps);
             chain.push((local, g.kr, lanes));
             // level N gives N − 1 bounces; kr = 0 would add exactly nothing
             if level >= self.recursion_level {
@@ -342,7 +404,7 @@ impl PacketRenderer {
             let n = g.normal;
             let d = ray.dir - n * (f32x8::splat(2.0) * ray.dir.dot(n));
             let d = d * (f32x8::splat(1.0) / d.length());
-            let o = offset_origin_x8(g.point, g.err, n, d);
+            let o = self.leave::<EPS>(g.point, g.err, n, d);
             ray = RayPacket8::new(o, d, next);
             active = next;
             stats.reflection_rays += next.count() as u64;
@@ -360,8 +422,22 @@ impl PacketRenderer {
             })
     }
 
-    /// Renders a frame: 4 × 2 pixel packets of camera rays through pixel centres.
+    /// Renders a frame: 4 × 2 pixel packets of camera rays through pixel centres. The
+    /// knobs (`shadow_any_hit`, `offset_epsilon`) pick one compiled instance here,
+    /// once per frame.
     pub fn render(&self, settings: &RenderSettings) -> Rendered {
+        match (self.shadow_any_hit, self.offset_epsilon.is_some()) {
+            (true, false) => self.render_knobs::<true, false>(settings),
+            (true, true) => self.render_knobs::<true, true>(settings),
+            (false, false) => self.render_knobs::<false, false>(settings),
+            (false, true) => self.render_knobs::<false, true>(settings),
+        }
+    }
+
+    fn render_knobs<const ANY_HIT: bool, const EPS: bool>(
+        &self,
+        settings: &RenderSettings,
+    ) -> Rendered {
         let grid = settings.camera.pixel_grid(settings.width, settings.height);
         let eye = (grid.eye - self.base).as_vec3();
         let tl = (grid.top_left - grid.eye).as_vec3();
@@ -390,7 +466,9 @@ impl PacketRenderer {
                     let p = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
                     let d = p * (f32x8::splat(1.0) / p.length());
                     let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                    let c = self.trace_with(&ray, active, &mut chain, &mut stats, &mut steps);
+                    let c = self.trace_knobs::<ANY_HIT, EPS>(
+                        &ray, active, &mut chain, &mut stats, &mut steps,
+                    );
                     stats.primary_rays += active.count() as u64;
                     let q = |v: f32x8| (v * f32x8::splat(255.0)).round().to_array();
                     let (r, g, b) = (q(c.x), q(c.y), q(c.z));
@@ -402,6 +480,7 @@ impl PacketRenderer {
                     }
                 }
             }
+            stats.quadric_tests += steps.quadrics;
             stats
         })
     }

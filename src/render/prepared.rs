@@ -24,7 +24,7 @@ use wide::f32x8;
 use super::caustic::CausticSettings;
 use super::frame::render_bands;
 use super::packet::{BAND_ROWS, PacketRenderer};
-use super::profile::{Profile, RenderPath};
+use super::profile::{Profile, RayOffset, RenderPath};
 use super::reference::Reference;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::Steps;
@@ -110,6 +110,11 @@ impl<'a> Prepared<'a> {
                 _ => PacketRenderer::new(self.scene, eye),
             };
             r.fallback_lanes = self.profile.single_ray_lanes;
+            r.shadow_any_hit = self.profile.shadow_any_hit;
+            r.offset_epsilon = match self.profile.ray_offset {
+                RayOffset::ErrorBound => None,
+                RayOffset::Epsilon(e) => Some(e),
+            };
             r
         })
     }
@@ -131,7 +136,14 @@ impl<'a> Prepared<'a> {
             (Engine::Reference(r), n) => reference_supersampled(r, &inner, n),
             (Engine::Packet(_), 1) => self.packet(settings.camera.eye).render(&inner),
             (Engine::Packet(_), n) => {
-                packet_supersampled(self.packet(settings.camera.eye), &inner, n)
+                let p = self.packet(settings.camera.eye);
+                // the packet knobs pick one compiled instance, once per frame
+                match (p.shadow_any_hit, p.offset_epsilon.is_some()) {
+                    (true, false) => packet_supersampled::<true, false>(p, &inner, n),
+                    (true, true) => packet_supersampled::<true, true>(p, &inner, n),
+                    (false, false) => packet_supersampled::<false, false>(p, &inner, n),
+                    (false, true) => packet_supersampled::<false, true>(p, &inner, n),
+                }
             }
         };
         if (inner.width, inner.height) != (settings.width, settings.height) {
@@ -186,7 +198,11 @@ fn reference_supersampled(tracer: &Reference, settings: &RenderSettings, n: u32)
 
 /// n × n samples per pixel on the packet path: 4 × 2 packets over the n×-resolution
 /// grid (as `PacketRenderer::render` builds them), summed per pixel in f32.
-fn packet_supersampled(p: &PacketRenderer, settings: &RenderSettings, n: u32) -> Rendered {
+fn packet_supersampled<const ANY_HIT: bool, const EPS: bool>(
+    p: &PacketRenderer,
+    settings: &RenderSettings,
+    n: u32,
+) -> Rendered {
     let (big_w, big_h) = (settings.width * n, settings.height * n);
     let grid = settings.camera.pixel_grid(big_w, big_h);
     let eye = (grid.eye - p.base()).as_vec3();
@@ -220,7 +236,8 @@ fn packet_supersampled(p: &PacketRenderer, settings: &RenderSettings, n: u32) ->
                 let q = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
                 let d = q * (f32x8::splat(1.0) / q.length());
                 let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                let c = p.trace_with(&ray, active, &mut chain, &mut stats, &mut steps);
+                let c =
+                    p.trace_knobs::<ANY_HIT, EPS>(&ray, active, &mut chain, &mut stats, &mut steps);
                 stats.primary_rays += active.count() as u64;
                 let (r, g, b) = (c.x.to_array(), c.y.to_array(), c.z.to_array());
                 for lane in 0..8 {
@@ -234,6 +251,7 @@ fn packet_supersampled(p: &PacketRenderer, settings: &RenderSettings, n: u32) ->
                 }
             }
         }
+        stats.quadric_tests += steps.quadrics;
         for (px, s) in pixels.iter_mut().zip(&sum) {
             *px = s.map(|v| quantize((v * inv) as f64));
         }

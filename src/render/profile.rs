@@ -243,18 +243,11 @@ impl Profile {
         let f: ProfileFile = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
         // Knobs in the schema that the packet path does not implement yet: only their
         // defaults are accepted, so no profile claims a setting that does nothing.
-        let not_wired = [
-            (
-                "triangle_test",
-                f.triangle_test
-                    .is_some_and(|t| t != TriangleTest::Watertight),
-            ),
-            (
-                "ray_offset",
-                f.ray_offset.is_some_and(|o| o != RayOffset::ErrorBound),
-            ),
-            ("shadow_any_hit", f.shadow_any_hit == Some(false)),
-        ];
+        let not_wired = [(
+            "triangle_test",
+            f.triangle_test
+                .is_some_and(|t| t != TriangleTest::Watertight),
+        )];
         if let Some((key, _)) = not_wired.iter().find(|(_, set)| *set) {
             let (line, column) = key_position(text, key);
             return Err(ProfileError::Syntax {
