@@ -28,6 +28,9 @@ use crate::scene::{Camera, Material, Object, Quadric, Scene, Shape, SpotLight};
 /// Timed renders per (scene, profile); the median is reported.
 pub const REPS: usize = 3;
 
+/// Timed renders per variant of the feature-cost table (small differences: more reps).
+pub const FEATURE_REPS: usize = 9;
+
 /// One measured (scene, profile).
 #[derive(Clone, Debug)]
 pub struct Row {
@@ -96,16 +99,21 @@ fn settings(size: u32) -> RenderSettings {
 
 /// Renders `REPS` times; returns the median time and the last frame.
 fn timed(profile: &Profile, scene: &Scene, s: &RenderSettings) -> (f64, Rendered) {
-    let mut times = Vec::with_capacity(REPS);
+    timed_n(profile, scene, s, REPS)
+}
+
+/// Renders `reps` times; returns the median time and the last frame.
+fn timed_n(profile: &Profile, scene: &Scene, s: &RenderSettings, reps: usize) -> (f64, Rendered) {
+    let mut times = Vec::with_capacity(reps);
     let mut last = None;
-    for _ in 0..REPS {
+    for _ in 0..reps.max(1) {
         let start = Instant::now();
         let r = profile.render(scene, s);
         times.push(start.elapsed().as_secs_f64());
         last = Some(r);
     }
     times.sort_by(f64::total_cmp);
-    (times[REPS / 2], last.expect("REPS > 0"))
+    (times[times.len() / 2], last.expect("at least one render"))
 }
 
 /// Measures every scene under every profile at `size`; `log` gets a line per row.
@@ -225,7 +233,7 @@ pub fn feature_costs(given: &Scene, profiles: &[Profile], size: u32) -> Vec<Feat
     let mut rows = Vec::new();
     for profile in profiles {
         for (variant, scene) in &variants {
-            let (seconds, frame) = timed(profile, scene, &s);
+            let (seconds, frame) = timed_n(profile, scene, &s, FEATURE_REPS);
             rows.push(FeatureRow {
                 variant: variant.clone(),
                 profile: profile.name.clone(),
@@ -355,7 +363,7 @@ pub fn markdown(
     if !costs.is_empty() {
         let _ = writeln!(
             md,
-            "## Model only what a scene requires\n\nThe counters above are zero where a scene has no quadric, no spotlight or recursion level 1: that code does not run (\"–\": not counted on that path). What each feature costs, on the given scene at the table's size:\n"
+            "## Model only what a scene requires\n\nThe counters above are zero where a scene has no quadric, no spotlight or recursion level 1: that code does not run (\"–\": not counted on that path). What each feature costs, on the given scene at the table's size (median of {FEATURE_REPS}):\n"
         );
         let _ = writeln!(
             md,
