@@ -132,7 +132,7 @@ impl<'a> Prepared<'a> {
         };
         let n = self.profile.samples_per_axis();
         let mut out = match (&self.engine, n) {
-            (Engine::Reference(r), 1) => reference_frame(r, &inner),
+            (Engine::Reference(r), 1) => super::reference::render_frame(r, &inner),
             (Engine::Reference(r), n) => reference_supersampled(r, &inner, n),
             (Engine::Packet(_), 1) => self.packet(settings.camera.eye).render(&inner),
             (Engine::Packet(_), n) => {
@@ -152,22 +152,6 @@ impl<'a> Prepared<'a> {
         out.stats.elapsed = start.elapsed();
         out
     }
-}
-
-/// One ray through each pixel centre: the frame loop of `reference::render`.
-fn reference_frame(tracer: &Reference, settings: &RenderSettings) -> Rendered {
-    let grid = settings.camera.pixel_grid(settings.width, settings.height);
-    let width = settings.width;
-    render_bands(settings, 1, |row, pixels| {
-        let mut stats = RenderStats::default();
-        for (i, px) in pixels.iter_mut().enumerate() {
-            let ray = Ray::new(grid.eye, grid.direction(i as f64, row as f64));
-            let c = tracer.trace_pixel(&ray, i as u32, row, &mut stats);
-            *px = [quantize(c.x), quantize(c.y), quantize(c.z)];
-        }
-        stats.primary_rays += width as u64;
-        stats
-    })
 }
 
 /// n × n samples per pixel on the reference path: the pixel centres of the n×-resolution

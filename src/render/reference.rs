@@ -484,8 +484,12 @@ pub fn render_with(
     settings: &RenderSettings,
     caustic: &CausticSettings,
 ) -> Rendered {
+    render_frame(&Reference::with_caustics(scene, caustic), settings)
+}
+
+/// One ray through each pixel centre, traced by a prepared tracer.
+pub fn render_frame(tracer: &Reference, settings: &RenderSettings) -> Rendered {
     let grid = settings.camera.pixel_grid(settings.width, settings.height);
-    let tracer = Reference::with_caustics(scene, caustic);
     let width = settings.width;
     render_bands(settings, 1, |row, pixels| {
         let mut stats = RenderStats::default();
