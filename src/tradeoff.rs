@@ -23,7 +23,7 @@ use crate::render::diff::{ImageDiff, compare, reference_ids};
 use crate::render::profile::{Profile, RenderPath};
 use crate::render::{RenderSettings, RenderStats, Rendered};
 use crate::scene::parse::parse_scene_file;
-use crate::scene::{Camera, Material, Object, Quadric, Scene, Shape, SpotLight};
+use crate::scene::{Material, Object, Quadric, Scene, Shape, SpotLight};
 
 /// Timed renders per (scene, profile); the median is reported.
 pub const REPS: usize = 3;
@@ -87,16 +87,6 @@ pub fn default_scenes(dir: &Path) -> Result<Vec<PathBuf>, TradeoffError> {
     Ok(files)
 }
 
-fn settings(size: u32) -> RenderSettings {
-    RenderSettings {
-        width: size,
-        height: size,
-        camera: Camera::default(),
-        threads: None,
-        progress: false,
-    }
-}
-
 /// Renders `REPS` times; returns the median time and the last frame.
 fn timed(profile: &Profile, scene: &Scene, s: &RenderSettings) -> (f64, Rendered) {
     timed_n(profile, scene, s, REPS)
@@ -124,7 +114,7 @@ pub fn measure(
     log: &mut dyn FnMut(&Row),
 ) -> Result<Vec<Row>, TradeoffError> {
     let reference = Profile::by_name("reference").expect("built in");
-    let s = settings(size);
+    let s = RenderSettings::square(size);
     let mut rows = Vec::new();
     for path in scenes {
         let parsed = parse_scene_file(path).map_err(|e| TradeoffError::Input(e.to_string()))?;
@@ -177,7 +167,7 @@ impl CloneFrame for Rendered {
 
 /// The given scene with one feature added or removed, under `profile`.
 pub fn feature_costs(given: &Scene, profiles: &[Profile], size: u32) -> Vec<FeatureRow> {
-    let s = settings(size);
+    let s = RenderSettings::square(size);
     let dark = Material {
         color: DVec3::splat(0.5),
         ka: 0.3,

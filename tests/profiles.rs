@@ -45,16 +45,6 @@ fn scenes() -> Vec<(String, Scene)> {
         .collect()
 }
 
-fn settings(size: u32) -> RenderSettings {
-    RenderSettings {
-        width: size,
-        height: size,
-        camera: Camera::default(),
-        threads: None,
-        progress: false,
-    }
-}
-
 /// A profile of the defaults plus `text`.
 fn custom(text: &str) -> Profile {
     Profile::from_toml("custom", text, "custom.toml").unwrap_or_else(|e| panic!("{e}"))
@@ -211,7 +201,7 @@ fn prepared_reference_renders_exactly_the_reference() {
     let p = Profile::by_name("reference").unwrap();
     let prepared = p.prepare(&scene);
     for eye in [[100.0, 100.0, 50.0], [80.0, -60.0, 30.0]] {
-        let mut s = settings(64);
+        let mut s = RenderSettings::square(64);
         s.camera =
             Camera::from_look(eye.into(), -glam::DVec3::from(eye), glam::DVec3::Z, 70.0).unwrap();
         let want = reference::render(&scene, &s).image;
@@ -227,9 +217,9 @@ fn prepared_packet_reuses_its_bvh() {
     let scene = Scene::given();
     let p = Profile::by_name("fast").unwrap();
     let prepared = p.prepare(&scene);
-    let s = settings(64);
+    let s = RenderSettings::square(64);
     assert_eq!(prepared.render(&s).image, p.render(&scene, &s).image);
-    let mut moved = settings(64);
+    let mut moved = RenderSettings::square(64);
     moved.camera = Camera::from_look(
         [90.0, 90.0, 45.0].into(),
         glam::DVec3::new(-1.0, -1.0, -0.2),
@@ -250,9 +240,9 @@ fn supersampling_averages_the_finer_grid() {
     let scene = Scene::given();
     for path in ["reference", "packet"] {
         let p = custom(&format!("path = \"{path}\"\nsamples_per_pixel = 4"));
-        let ss = p.render(&scene, &settings(48)).image;
+        let ss = p.render(&scene, &RenderSettings::square(48)).image;
         let fine = custom(&format!("path = \"{path}\""))
-            .render(&scene, &settings(96))
+            .render(&scene, &RenderSettings::square(96))
             .image;
         let mut worst = 0;
         for y in 0..48usize {
@@ -277,10 +267,10 @@ fn supersampling_averages_the_finer_grid() {
 fn resolution_scale_upscales_a_smaller_frame() {
     let scene = Scene::given();
     let half = custom("path = \"reference\"\nresolution_scale = 0.5");
-    let img = half.render(&scene, &settings(64));
+    let img = half.render(&scene, &RenderSettings::square(64));
     assert_eq!((img.image.width, img.image.height), (64, 64));
     assert_eq!(img.stats.primary_rays, 32 * 32);
-    let small = reference::render(&scene, &settings(32)).image;
+    let small = reference::render(&scene, &RenderSettings::square(32)).image;
     assert_eq!(img.image, upscale_bilinear(&small, 64, 64));
 }
 
@@ -293,8 +283,8 @@ fn max_recursion_caps_mirror_rays() {
     for path in ["reference", "packet"] {
         let capped = custom(&format!("path = \"{path}\"\nmax_recursion = 1"));
         let free = custom(&format!("path = \"{path}\""));
-        let a = capped.render(&scene, &settings(48)).stats;
-        let b = free.render(&scene, &settings(48)).stats;
+        let a = capped.render(&scene, &RenderSettings::square(48)).stats;
+        let b = free.render(&scene, &RenderSettings::square(48)).stats;
         assert_eq!(a.reflection_rays, 0, "{path}");
         assert!(b.reflection_rays > 0, "{path}");
     }
@@ -309,7 +299,7 @@ fn accuracy_bars_on_every_scene() {
     let fast = Profile::by_name("fast").unwrap();
     let accurate = Profile::by_name("accurate").unwrap();
     let reference = Profile::by_name("reference").unwrap();
-    let s = settings(size);
+    let s = RenderSettings::square(size);
     for (name, scene) in scenes() {
         let want = reference.render(&scene, &s).image;
         let ids = reference_ids(&scene, &s.camera, size, size);
@@ -335,7 +325,7 @@ fn accuracy_bars_on_every_scene() {
 #[test]
 fn packet_knobs_are_real() {
     let scene = Scene::given();
-    let s = settings(96);
+    let s = RenderSettings::square(96);
     let want = reference::render(&scene, &s).image;
     let ids = reference_ids(&scene, &s.camera, 96, 96);
     let base = custom("").render(&scene, &s).image;
@@ -368,7 +358,7 @@ fn packet_knobs_are_real() {
 fn counters_are_zero_for_absent_features() {
     let scenes = scenes();
     let get = |n: &str| &scenes.iter().find(|(name, _)| name == n).unwrap().1;
-    let s = settings(64);
+    let s = RenderSettings::square(64);
     for profile in ["reference", "fast"] {
         let p = Profile::by_name(profile).unwrap();
         let given = p.render(get("given"), &s).stats;

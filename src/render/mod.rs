@@ -32,15 +32,20 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
-    /// The scene's own size and the default camera.
-    pub fn for_scene(scene: &Scene) -> RenderSettings {
+    /// A `size × size` frame from the default camera, on every core, no progress bar.
+    pub fn square(size: u32) -> RenderSettings {
         RenderSettings {
-            width: scene.pixels,
-            height: scene.pixels,
+            width: size,
+            height: size,
             camera: Camera::default(),
             threads: None,
             progress: false,
         }
+    }
+
+    /// The scene's own size and the default camera.
+    pub fn for_scene(scene: &Scene) -> RenderSettings {
+        RenderSettings::square(scene.pixels)
     }
 }
 
