@@ -7,8 +7,15 @@
 //! A range whose centroids all coincide is halved. A leaf with several kinds is
 //! split by kind. Beyond depth `MEDIAN_DEPTH` splits are halvings, so the depth stays
 //! below the traversal stack size.
+//!
+//! Work per node: one binning pass and one in-place partition pass over 32-byte
+//! references (bounds with index and kind in the spare lanes); the partition computes
+//! both children's bounds and centroid bounds on the way, so no node rescans its range.
+//! Primitives are reordered into leaf order once, at the end. Each pair of children
+//! sits on one 64-byte cache line (node 1 may be an unreachable pad for that).
 
-use glam::Vec3A;
+use glam::Vec4;
+use wide::{f32x4, i32x4};
 
 use super::node::{Aabb, BvhNode};
 use crate::geometry::{PrimKind, PrimSet};
@@ -22,135 +29,184 @@ pub const C_TRAVERSE: f32 = 1.0;
 /// Depth past which ranges are halved instead of SAH-split.
 const MEDIAN_DEPTH: usize = 48;
 
-/// A primitive reference during the build: bounds and (kind, index) packed.
+/// A primitive reference during the build, 32 bytes: `lo.w` holds the index's bits,
+/// `hi.w` the kind's. Centroids are `lo + hi` (twice the centre; only the x, y, z
+/// lanes are ever read).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 struct Ref {
-    lo: Vec3A,
-    hi: Vec3A,
-    kind: u32,
-    index: u32,
+    lo: Vec4,
+    hi: Vec4,
 }
 
 impl Ref {
     #[inline]
-    fn centroid2(&self) -> Vec3A {
+    fn index(&self) -> usize {
+        self.lo.w.to_bits() as usize
+    }
+    #[inline]
+    fn kind(&self) -> u32 {
+        self.hi.w.to_bits()
+    }
+    #[inline]
+    fn centroid2(&self) -> Vec4 {
         self.lo + self.hi
     }
 }
 
-#[derive(Clone, Copy)]
-struct Bin {
-    lo: Vec3A,
-    hi: Vec3A,
-    n: u32,
+/// Bounds and centroid bounds of a range (x, y, z lanes only).
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    lo: Vec4,
+    hi: Vec4,
+    clo: Vec4,
+    chi: Vec4,
 }
 
-impl Bin {
-    const EMPTY: Bin = Bin {
-        lo: Vec3A::splat(f32::INFINITY),
-        hi: Vec3A::splat(f32::NEG_INFINITY),
-        n: 0,
+impl Bounds {
+    const EMPTY: Bounds = Bounds {
+        lo: Vec4::INFINITY,
+        hi: Vec4::NEG_INFINITY,
+        clo: Vec4::INFINITY,
+        chi: Vec4::NEG_INFINITY,
     };
+
+    #[inline]
+    fn add(&mut self, r: &Ref) {
+        self.lo = self.lo.min(r.lo);
+        self.hi = self.hi.max(r.hi);
+        let c = r.centroid2();
+        self.clo = self.clo.min(c);
+        self.chi = self.chi.max(c);
+    }
+
+    fn of(part: &[Ref]) -> Bounds {
+        let mut b = Bounds::EMPTY;
+        for r in part {
+            b.add(r);
+        }
+        b
+    }
+
+    fn aabb(&self) -> Aabb {
+        Aabb::new(self.lo.truncate(), self.hi.truncate())
+    }
 }
 
-fn area(lo: Vec3A, hi: Vec3A) -> f32 {
-    let d = (hi - lo).max(Vec3A::ZERO);
-    2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+/// Half the surface area of a box (x, y, z lanes).
+#[inline]
+fn half_area(lo: Vec4, hi: Vec4) -> f32 {
+    let d = hi - lo;
+    d.x * d.y + d.y * d.z + d.z * d.x
 }
 
 /// Builds the node array over the BVH kinds of `prims` and reorders those kinds'
 /// arrays into leaf order. Returns the nodes (empty when there is nothing to bound).
 pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
-    let mut refs =
-        Vec::with_capacity(prims.spheres.len() + prims.triangles.len() + prims.quadrics.len());
+    let total: usize = PrimKind::BVH_KINDS.iter().map(|&k| prims.len(k)).sum();
+    if total == 0 {
+        return Vec::new();
+    }
+    let mut refs = Vec::with_capacity(total);
+    let mut root = Bounds::EMPTY;
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
             let b = prims.bounds(kind, i);
-            refs.push(Ref {
-                lo: b.lo.into(),
-                hi: b.hi.into(),
-                kind: kind as u32,
-                index: i as u32,
-            });
+            let r = Ref {
+                lo: b.lo.extend(f32::from_bits(i as u32)),
+                hi: b.hi.extend(f32::from_bits(kind as u32)),
+            };
+            root.add(&r);
+            refs.push(r);
         }
     }
-    if refs.is_empty() {
-        return Vec::new();
-    }
-    let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
+    // at most 2·total − 1 nodes and one pad: never reallocated, so the pad below
+    // keeps every pair of children on one 64-byte cache line
+    let mut nodes = Vec::with_capacity(2 * total);
     nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
-    // leaves as (node, start, end) in refs; their `first` is fixed after reordering
-    let mut leaves: Vec<(u32, u32, u32)> = Vec::new();
-    let mut tasks = vec![(0u32, 0usize, refs.len(), 0usize)];
-    while let Some((ni, start, end, depth)) = tasks.pop() {
+    if (nodes.as_ptr() as usize / std::mem::size_of::<BvhNode>()) % 2 == 0 {
+        // pairs start at even indices; the pad (index 1) is unreachable from the
+        // root and has no area (no SAH cost)
+        nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+    }
+    // leaves as (node, start, end) in refs, found in order of `start` (depth first,
+    // left before right); their `first` is fixed after reordering
+    let mut leaves: Vec<(u32, u32, u32)> = Vec::with_capacity(total / 2 + 1);
+    let mut tasks = Vec::with_capacity(2 * MEDIAN_DEPTH);
+    tasks.push((0u32, 0usize, total, 0usize, root));
+    while let Some((ni, start, end, depth, b)) = tasks.pop() {
         let part = &mut refs[start..end];
-        let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
-        let (mut clo, mut chi) = (lo, hi);
-        for r in part.iter() {
-            lo = lo.min(r.lo);
-            hi = hi.max(r.hi);
-            let c = r.centroid2();
-            clo = clo.min(c);
-            chi = chi.max(c);
-        }
-        let bounds = Aabb::new(lo.into(), hi.into());
         let n = part.len();
-        let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind != part[0].kind);
-        let widest = widest_axis(chi - clo);
-        let (mid, axis) = match choose_split(part, lo, hi, clo, chi, depth) {
+        let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind() != part[0].kind());
+        let (mid, axis, lb, rb) = match choose_split(part, &b, depth) {
             Split::Leaf if !mixed => {
+                debug_assert!(leaves.last().is_none_or(|l| l.2 as usize <= start));
                 leaves.push((ni, start as u32, end as u32));
-                let kind = PrimKind::from_u32(part[0].kind);
-                nodes[ni as usize] = BvhNode::leaf(bounds, 0, n as u32, kind);
+                let kind = PrimKind::from_u32(part[0].kind());
+                nodes[ni as usize] = BvhNode::leaf(b.aabb(), 0, n as u32, kind);
                 continue;
             }
             Split::Leaf => {
                 // one kind per leaf: split off the first kind
-                let k = part[0].kind;
-                (partition(part, |r| r.kind == k), widest)
+                let k = part[0].kind();
+                let (mid, lb, rb) = partition(part, |r| r.kind() == k);
+                (mid, widest_axis(b.chi - b.clo), lb, rb)
             }
-            Split::At(axis, bin, scale, base) => (
-                partition(part, |r| bin_of(r.centroid2()[axis], base, scale) < bin),
-                axis,
-            ),
+            Split::At(axis, bin, scale, base, top) => {
+                let (mid, lb, rb) = partition(part, |r| {
+                    bin_of(r.centroid2()[axis], base, scale, top) < bin
+                });
+                (mid, axis, lb, rb)
+            }
             Split::Half(axis) => {
                 part.select_nth_unstable_by(n / 2, |a, b| {
                     a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
                 });
-                (n / 2, axis)
+                let (l, r) = part.split_at(n / 2);
+                (n / 2, axis, Bounds::of(l), Bounds::of(r))
             }
         };
-        let mid = if mid == 0 || mid == n { n / 2 } else { mid };
+        let (mid, lb, rb) = if mid == 0 || mid == n {
+            let (l, r) = part.split_at(n / 2);
+            (n / 2, Bounds::of(l), Bounds::of(r))
+        } else {
+            (mid, lb, rb)
+        };
         let left = nodes.len() as u32;
         nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
         nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
-        nodes[ni as usize] = BvhNode::interior(bounds, left, axis);
-        tasks.push((left + 1, start + mid, end, depth + 1));
-        tasks.push((left, start, start + mid, depth + 1));
+        nodes[ni as usize] = BvhNode::interior(b.aabb(), left, axis);
+        tasks.push((left + 1, start + mid, end, depth + 1, rb));
+        tasks.push((left, start, start + mid, depth + 1, lb));
     }
     // reorder the BVH kinds into leaf order; each leaf is contiguous in its kind
     let mut p = PrimSet::default();
-    leaves.sort_unstable_by_key(|l| l.1);
+    p.triangles.reserve(prims.triangles.len());
+    p.triangle_obj.reserve(prims.triangles.len());
     for (ni, start, end) in leaves {
-        let kind = PrimKind::from_u32(refs[start as usize].kind);
+        let kind = PrimKind::from_u32(refs[start as usize].kind());
         nodes[ni as usize].first = p.len(kind) as u32;
-        for r in &refs[start as usize..end as usize] {
-            let i = r.index as usize;
-            match kind {
-                PrimKind::Sphere => {
-                    p.spheres.push(prims.spheres[i]);
-                    p.sphere_obj.push(prims.sphere_obj[i]);
+        let leaf = &refs[start as usize..end as usize];
+        match kind {
+            PrimKind::Sphere => {
+                for r in leaf {
+                    p.spheres.push(prims.spheres[r.index()]);
+                    p.sphere_obj.push(prims.sphere_obj[r.index()]);
                 }
-                PrimKind::Triangle => {
-                    p.triangles.push(prims.triangles[i]);
-                    p.triangle_obj.push(prims.triangle_obj[i]);
-                }
-                PrimKind::Quadric => {
-                    p.quadrics.push(prims.quadrics[i]);
-                    p.quadric_obj.push(prims.quadric_obj[i]);
-                }
-                PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
             }
+            PrimKind::Triangle => {
+                for r in leaf {
+                    p.triangles.push(prims.triangles[r.index()]);
+                    p.triangle_obj.push(prims.triangle_obj[r.index()]);
+                }
+            }
+            PrimKind::Quadric => {
+                for r in leaf {
+                    p.quadrics.push(prims.quadrics[r.index()]);
+                    p.quadric_obj.push(prims.quadric_obj[r.index()]);
+                }
+            }
+            PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
         }
     }
     prims.spheres = p.spheres;
@@ -162,7 +218,7 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     nodes
 }
 
-fn widest_axis(extent: Vec3A) -> usize {
+fn widest_axis(extent: Vec4) -> usize {
     if extent.x >= extent.y && extent.x >= extent.z {
         0
     } else if extent.y >= extent.z {
@@ -174,24 +230,51 @@ fn widest_axis(extent: Vec3A) -> usize {
 
 enum Split {
     Leaf,
-    /// Axis, first bin of the right side, bin scale, bin base.
-    At(usize, usize, f32, f32),
+    /// Axis, first bin of the right side, bin scale, bin base, last bin.
+    At(usize, usize, f32, f32, usize),
     Half(usize),
 }
 
 #[inline]
-fn bin_of(c: f32, base: f32, scale: f32) -> usize {
-    (((c - base) * scale) as usize).min(BINS - 1)
+fn bin_of(c: f32, base: f32, scale: f32, top: usize) -> usize {
+    (((c - base) * scale) as usize).min(top)
 }
 
-fn choose_split(part: &[Ref], lo: Vec3A, hi: Vec3A, clo: Vec3A, chi: Vec3A, depth: usize) -> Split {
+/// Per-axis bins: bounds and counts.
+struct Bins<const B: usize> {
+    lo: [[Vec4; B]; 3],
+    hi: [[Vec4; B]; 3],
+    n: [[u32; B]; 3],
+}
+
+impl<const B: usize> Bins<B> {
+    fn new() -> Self {
+        Bins {
+            lo: [[Vec4::INFINITY; B]; 3],
+            hi: [[Vec4::NEG_INFINITY; B]; 3],
+            n: [[0; B]; 3],
+        }
+    }
+
+    #[inline]
+    fn add(&mut self, r: &Ref, k: [i32; 4]) {
+        for (axis, &k) in k.iter().take(3).enumerate() {
+            let k = k as usize;
+            self.lo[axis][k] = self.lo[axis][k].min(r.lo);
+            self.hi[axis][k] = self.hi[axis][k].max(r.hi);
+            self.n[axis][k] += 1;
+        }
+    }
+}
+
+fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
     let n = part.len();
-    let extent = chi - clo;
+    let extent = b.chi - b.clo;
     let widest = widest_axis(extent);
     if n <= 1 {
         return Split::Leaf;
     }
-    if extent.max_element() <= 0.0 {
+    if extent.truncate().max_element() <= 0.0 {
         return if n <= MAX_LEAF {
             Split::Leaf
         } else {
@@ -201,62 +284,71 @@ fn choose_split(part: &[Ref], lo: Vec3A, hi: Vec3A, clo: Vec3A, chi: Vec3A, dept
     if depth >= MEDIAN_DEPTH {
         return Split::Half(widest);
     }
-    let scale = Vec3A::splat(BINS as f32 * (1.0 - 1e-6)) / extent;
-    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), scale, Vec3A::ZERO);
-    let mut bins = [[Bin::EMPTY; BINS]; 3];
-    for r in part {
-        let c = r.centroid2();
-        let b = ((c - clo) * scale).to_array();
-        for axis in 0..3 {
-            let k = (b[axis] as usize).min(BINS - 1);
-            let bin = &mut bins[axis][k];
-            bin.lo = bin.lo.min(r.lo);
-            bin.hi = bin.hi.max(r.hi);
-            bin.n += 1;
-        }
+    if n <= MAX_LEAF {
+        bin_split::<MAX_LEAF>(part, b)
+    } else {
+        bin_split::<BINS>(part, b)
     }
-    let node_area = area(lo, hi).max(f32::MIN_POSITIVE);
+}
+
+/// The cheapest SAH split over min(n, B) bins per axis, or a leaf.
+#[inline]
+fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
+    let n = part.len();
+    let extent = b.chi - b.clo;
+    let widest = widest_axis(extent);
+    // no more bins than primitives: the many small ranges (half the calls are final
+    // leaves of a few primitives) sweep a few bins
+    let nb = n.min(B);
+    let scale = Vec4::splat(nb as f32 * (1.0 - 1e-6)) / extent;
+    let scale = Vec4::select(extent.cmpgt(Vec4::ZERO), scale, Vec4::ZERO);
+    let base = b.clo;
+    // the same bin as `bin_of` on each axis: (c − base) · scale truncated, at most
+    // nb − 1 (never negative: base is the least centroid). One SIMD truncation
+    // instead of three saturating scalar casts.
+    let top = i32x4::splat(nb as i32 - 1);
+    let (base4, scale4) = (f32x4::from(base.to_array()), f32x4::from(scale.to_array()));
+    let bin = |r: &Ref| {
+        let c = f32x4::from(r.centroid2().to_array());
+        ((c - base4) * scale4).fast_trunc_int().min(top).to_array()
+    };
+    let mut bins = Bins::<B>::new();
+    for r in part {
+        bins.add(r, bin(r));
+    }
     let mut best = (f32::INFINITY, 0, 0);
-    for (axis, bins) in bins.iter().enumerate() {
+    for axis in 0..3 {
         if extent[axis] <= 0.0 {
             continue;
         }
+        let (blo, bhi, bn) = (&bins.lo[axis], &bins.hi[axis], &bins.n[axis]);
         // sweep from the right: cost of the right side of each boundary
-        let mut right_cost = [0.0f32; BINS];
-        let (mut rlo, mut rhi, mut rn) = (
-            Vec3A::splat(f32::INFINITY),
-            Vec3A::splat(f32::NEG_INFINITY),
-            0u32,
-        );
-        for k in (1..BINS).rev() {
-            rlo = rlo.min(bins[k].lo);
-            rhi = rhi.max(bins[k].hi);
-            rn += bins[k].n;
+        let mut right_cost = [0.0f32; B];
+        let (mut rlo, mut rhi, mut rn) = (Vec4::INFINITY, Vec4::NEG_INFINITY, 0u32);
+        for k in (1..nb).rev() {
+            rlo = rlo.min(blo[k]);
+            rhi = rhi.max(bhi[k]);
+            rn += bn[k];
             right_cost[k] = if rn > 0 {
-                area(rlo, rhi) * rn as f32
+                half_area(rlo, rhi) * rn as f32
             } else {
                 0.0
             };
         }
-        let (mut llo, mut lhi, mut ln) = (
-            Vec3A::splat(f32::INFINITY),
-            Vec3A::splat(f32::NEG_INFINITY),
-            0u32,
-        );
-        for k in 1..BINS {
-            llo = llo.min(bins[k - 1].lo);
-            lhi = lhi.max(bins[k - 1].hi);
-            ln += bins[k - 1].n;
+        let (mut llo, mut lhi, mut ln) = (Vec4::INFINITY, Vec4::NEG_INFINITY, 0u32);
+        for k in 1..nb {
+            llo = llo.min(blo[k - 1]);
+            lhi = lhi.max(bhi[k - 1]);
+            ln += bn[k - 1];
             if ln == 0 || ln as usize == n {
                 continue;
             }
-            let cost = area(llo, lhi) * ln as f32 + right_cost[k];
+            let cost = half_area(llo, lhi) * ln as f32 + right_cost[k];
             if cost < best.0 {
                 best = (cost, axis, k);
             }
         }
     }
-    let split_cost = C_TRAVERSE + best.0 / node_area;
     if best.0.is_infinite() {
         return if n <= MAX_LEAF {
             Split::Leaf
@@ -264,24 +356,40 @@ fn choose_split(part: &[Ref], lo: Vec3A, hi: Vec3A, clo: Vec3A, chi: Vec3A, dept
             Split::Half(widest)
         };
     }
+    let node_area = half_area(b.lo, b.hi).max(f32::MIN_POSITIVE);
+    let split_cost = C_TRAVERSE + best.0 / node_area;
     if n <= MAX_LEAF && split_cost >= n as f32 {
         return Split::Leaf;
     }
     let axis = best.1;
-    Split::At(axis, best.2, scale[axis], clo[axis])
+    Split::At(axis, best.2, scale[axis], base[axis], nb - 1)
 }
 
-/// Moves the refs satisfying `left` to the front; returns their count.
-fn partition(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
+/// Moves the refs satisfying `left` to the front; returns their count and the
+/// bounds of both sides.
+#[inline]
+fn partition(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, Bounds) {
+    let (mut lb, mut rb) = (Bounds::EMPTY, Bounds::EMPTY);
     let mut i = 0;
     let mut j = part.len();
-    while i < j {
-        if left(&part[i]) {
+    loop {
+        while i < j && left(&part[i]) {
+            lb.add(&part[i]);
             i += 1;
-        } else {
-            j -= 1;
-            part.swap(i, j);
         }
+        while i < j && !left(&part[j - 1]) {
+            j -= 1;
+            rb.add(&part[j]);
+        }
+        if i + 1 >= j {
+            break;
+        }
+        // part[i] belongs right, part[j − 1] left
+        part.swap(i, j - 1);
+        lb.add(&part[i]);
+        i += 1;
+        j -= 1;
+        rb.add(&part[j]);
     }
-    i
+    (i, lb, rb)
 }

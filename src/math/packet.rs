@@ -49,15 +49,13 @@ impl Mask8 {
     pub const ALL: Mask8 = Mask8(f32x8::new([f32::from_bits(u32::MAX); 8]));
     pub const NONE: Mask8 = Mask8(f32x8::ZERO);
 
-    /// Lanes i with bit i of `bits` set.
+    /// Lanes i with bit i of `bits` set (an and and a compare: the packet traversal
+    /// rebuilds a mask from its stack on every pop).
+    #[inline]
     pub fn from_bits(bits: u32) -> Mask8 {
-        let mut a = [0.0f32; 8];
-        for (i, l) in a.iter_mut().enumerate() {
-            if bits >> i & 1 == 1 {
-                *l = f32::from_bits(u32::MAX);
-            }
-        }
-        Mask8(f32x8::new(a))
+        let lanes = i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+        let m = (i32x8::splat(bits as i32) & lanes).simd_ge(lanes);
+        Mask8(wide::bytemuck::cast(m))
     }
 
     #[inline]
@@ -293,6 +291,9 @@ pub struct RayPacket8 {
     pub kz_y: Mask8,
     /// Shear of the watertight test: −d[kx]/d[kz], −d[ky]/d[kz], 1/d[kz].
     pub shear: Vec3x8,
+    /// The kz of every lane when they all share it (0, 1, 2), else 3: lets
+    /// [`RayPacket8::permute`] move whole vectors instead of blending lane by lane.
+    pub kz_all: u32,
     /// Sign bits of lane `first_lane`'s direction (bit k: dir[k] < 0), for ordered traversal.
     pub octant: u32,
 }
@@ -328,6 +329,12 @@ impl RayPacket8 {
             kz_x,
             kz_y,
             shear: Vec3x8::ZERO,
+            kz_all: match (kz_x.bits(), kz_y.bits()) {
+                (0xff, _) => 0,
+                (0, 0xff) => 1,
+                (0, 0) => 2,
+                _ => 3,
+            },
             octant: 0,
         };
         let d = p.permute(dir);
@@ -355,6 +362,12 @@ impl RayPacket8 {
     #[inline]
     pub fn permute(&self, v: Vec3x8) -> Vec3x8 {
         // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z)
+        match self.kz_all {
+            0 => return Vec3x8::new(v.y, v.z, v.x),
+            1 => return Vec3x8::new(v.z, v.x, v.y),
+            2 => return v,
+            _ => {}
+        }
         let x = self.kz_x.select(v.y, self.kz_y.select(v.z, v.x));
         let y = self.kz_x.select(v.z, self.kz_y.select(v.x, v.y));
         let z = self.kz_x.select(v.x, self.kz_y.select(v.y, v.z));
