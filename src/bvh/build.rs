@@ -124,7 +124,7 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     // keeps every pair of children on one 64-byte cache line
     let mut nodes = Vec::with_capacity(2 * total);
     nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
-    if (nodes.as_ptr() as usize / std::mem::size_of::<BvhNode>()) % 2 == 0 {
+    if (nodes.as_ptr() as usize / std::mem::size_of::<BvhNode>()).is_multiple_of(2) {
         // pairs start at even indices; the pad (index 1) is unreachable from the
         // root and has no area (no SAH cost)
         nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
