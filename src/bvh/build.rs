@@ -26,6 +26,8 @@ const BINS: usize = 16;
 pub const MAX_LEAF: usize = 8;
 /// Cost of one box test relative to one primitive test.
 pub const C_TRAVERSE: f32 = 1.0;
+/// References binned per split at most (larger ranges are sampled evenly).
+const SAMPLE: usize = 4096;
 /// Depth past which ranges are halved instead of SAH-split.
 const MEDIAN_DEPTH: usize = 48;
 
@@ -313,8 +315,13 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
         ((c - base4) * scale4).fast_trunc_int().min(top).to_array()
     };
     let mut bins = Bins::<B>::new();
-    for r in part {
+    // large ranges are binned on an even sample of about SAMPLE references: the
+    // costs compare the same, and these passes stream the whole reference array
+    let stride = (n / SAMPLE).max(1);
+    let mut sampled = 0usize;
+    for r in part.iter().step_by(stride) {
         bins.add(r, bin(r));
+        sampled += 1;
     }
     let mut best = (f32::INFINITY, 0, 0);
     for axis in 0..3 {
@@ -340,7 +347,7 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
             llo = llo.min(blo[k - 1]);
             lhi = lhi.max(bhi[k - 1]);
             ln += bn[k - 1];
-            if ln == 0 || ln as usize == n {
+            if ln == 0 || ln as usize == sampled {
                 continue;
             }
             let cost = half_area(llo, lhi) * ln as f32 + right_cost[k];
