@@ -1,0 +1,522 @@
+//! An 8-wide BVH collapsed from the binary SAH tree, for single rays.
+//!
+//! [`WideBvh::collapse`] turns the binary node array into nodes of up to eight children
+//! (greedy: a node's two children are taken, then the interior child with the largest
+//! surface area is replaced by its two children until there are eight or only leaves
+//! left; O(n), every binary node is opened at most once). A binary subtree of at most
+//! [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, becomes one
+//! leaf: one block of [`Triangle8`] for triangles instead of several nearly empty ones.
+//! The slot boxes are the binary nodes' boxes, bit for bit, so a slot's slab test gives
+//! the same answer the binary traversal gets for that subtree.
+//!
+//! One ray is tested against the eight boxes of a node at once ([`WideNode`], SoA, f32x8),
+//! the hit children are visited nearest first (closest hit) and a leaf's triangles eight
+//! at a time with the watertight 1×8 kernel ([`Triangle8::intersect_1x8`], equal lane by
+//! lane to [`Triangle32::intersect_1`]). Spheres and clipped quadrics in leaves go
+//! through [`PrimSet::intersect_1`]/[`PrimSet::occluded_1`] one by one.
+//!
+//! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits, an exact tie in
+//! t goes to the lower object index, the unbounded quadrics and the floor after the
+//! tree. Step counters: `boxes` counts **wide node tests** (one per node visited, each
+//! of up to 8 boxes), `prims` the primitives tested (real triangles, not padding lanes),
+//! `quadrics` the quadric tests.
+//!
+//! [`Triangle32::intersect_1`]: crate::geometry::triangle::Triangle32::intersect_1
+
+use std::mem::MaybeUninit;
+
+use wide::f32x8;
+
+use super::{Bvh, STACK_SIZE, Steps};
+use crate::geometry::triangle::{TriRay8, Triangle8};
+use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code};
+use crate::math::packet::{Cmp8, FAR_WIDEN, Ray1};
+
+/// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
+// Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary):
+// 8: 2.07 / 5.81 Mrays/s; 4: 1.93 / 5.62; 1 (binary leaves only): 1.37 / 5.76.
+pub const MERGE_MAX: u32 = 8;
+
+/// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
+const INTERIOR: u32 = 0;
+const COUNT_MASK: u32 = (1 << 28) - 1;
+
+/// A node of the 8-wide tree. 256 B = four cache lines, 64-byte aligned.
+///
+/// `bounds[2a]` / `bounds[2a + 1]`: the low / high bounds of the eight child boxes on
+/// axis a (x, y, z), lane i = slot i. Empty slots have lo = +∞, hi = −∞: with the near
+/// plane picked by the sign of the direction (never min/max), their entry is +∞ and
+/// their exit −∞, so they never hit. Slots are filled from 0 without gaps.
+/// `meta[i]` == 0: interior child, `child[i]` is the index of its [`WideNode`];
+/// otherwise a leaf: bits 0..28 the primitive count, bits 28..31 the [`PrimKind`];
+/// `child[i]` is the first [`TriBlock`] for triangles, the first primitive of its kind
+/// in the [`PrimSet`] otherwise.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct WideNode {
+    pub bounds: [f32x8; 6],
+    pub child: [u32; 8],
+    pub meta: [u32; 8],
+}
+
+const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+/// Up to eight triangles of one leaf, SoA, with the index of the first in
+/// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
+/// that never hits). 320 B = five cache lines.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct TriBlock {
+    pub tri: Triangle8,
+    pub first: u32,
+    pub count: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 320);
+
+/// The 8-wide tree over the same primitives as the binary one (it owns copies of the
+/// triangles in blocks; the primitive codes it reports index `PrimSet`).
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    pub blocks: Vec<TriBlock>,
+}
+
+/// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
+/// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
+const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
+
+/// Subtree summary of a binary node: one kind, contiguous primitives `first..first+count`.
+#[derive(Clone, Copy)]
+struct Span {
+    kind: u32,
+    first: u32,
+    count: u32,
+}
+
+impl WideBvh {
+    /// Collapses the binary tree `nodes` over `prims` (in leaf order) into the wide tree.
+    pub fn collapse(nodes: &[super::BvhNode], prims: &PrimSet) -> WideBvh {
+        let mut w = WideBvh::default();
+        if nodes.is_empty() {
+            return w;
+        }
+        // bottom-up: which subtrees are one contiguous run of one kind (children follow
+        // their parent in the array, so a reverse sweep sees children first)
+        let mut span: Vec<Option<Span>> = vec![None; nodes.len()];
+        for i in (0..nodes.len()).rev() {
+            let n = &nodes[i];
+            span[i] = if n.is_leaf() {
+                Some(Span {
+                    kind: n.kind() as u32,
+                    first: n.first,
+                    count: n.count(),
+                })
+            } else {
+                let l = n.first as usize;
+                match (span[l], span[l + 1]) {
+                    (Some(a), Some(b)) if a.kind == b.kind => {
+                        let (lo, hi) = if a.first <= b.first { (a, b) } else { (b, a) };
+                        (lo.first + lo.count == hi.first).then_some(Span {
+                            kind: a.kind,
+                            first: lo.first,
+                            count: a.count + b.count,
+                        })
+                    }
+                    _ => None,
+                }
+            };
+        }
+        // a binary node becomes a leaf slot when it is a leaf or a small enough run
+        let as_leaf = |i: usize| -> Option<Span> {
+            let s = span[i]?;
+            (nodes[i].is_leaf() || s.count <= MERGE_MAX).then_some(s)
+        };
+        w.nodes.reserve(nodes.len() / 4 + 1);
+        w.nodes.push(Self::empty_node());
+        // (wide node to fill, its binary children)
+        let mut work: Vec<(usize, Vec<usize>)> = Vec::new();
+        let root_children = if as_leaf(0).is_some() {
+            vec![0]
+        } else {
+            vec![nodes[0].first as usize, nodes[0].first as usize + 1]
+        };
+        work.push((0, root_children));
+        while let Some((wi, mut kids)) = work.pop() {
+            // open the interior child with the largest surface area while there is room
+            while kids.len() < 8 {
+                let best = kids
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &k)| as_leaf(k).is_none())
+                    .max_by(|a, b| {
+                        let (aa, ab) = (nodes[*a.1].bounds().area(), nodes[*b.1].bounds().area());
+                        aa.total_cmp(&ab)
+                    })
+                    .map(|(slot, _)| slot);
+                let Some(slot) = best else { break };
+                let b = kids[slot];
+                let l = nodes[b].first as usize;
+                kids[slot] = l;
+                kids.push(l + 1);
+            }
+            let mut node = Self::empty_node();
+            let mut lanes = [[0.0f32; 8]; 6];
+            for (s, lane) in lanes.iter_mut().enumerate() {
+                *lane = node.bounds[s].to_array();
+            }
+            for (slot, &k) in kids.iter().enumerate() {
+                let b = nodes[k].bounds();
+                for a in 0..3 {
+                    lanes[2 * a][slot] = b.lo[a];
+                    lanes[2 * a + 1][slot] = b.hi[a];
+                }
+                match as_leaf(k) {
+                    Some(s) => {
+                        node.meta[slot] = s.count | s.kind << 28;
+                        node.child[slot] = if s.kind == PrimKind::Triangle as u32 {
+                            w.push_blocks(prims, s.first, s.count)
+                        } else {
+                            s.first
+                        };
+                    }
+                    None => {
+                        let ci = w.nodes.len();
+                        w.nodes.push(Self::empty_node());
+                        node.meta[slot] = INTERIOR;
+                        node.child[slot] = ci as u32;
+                        let l = nodes[k].first as usize;
+                        work.push((ci, vec![l, l + 1]));
+                    }
+                }
+            }
+            node.bounds = lanes.map(f32x8::new);
+            w.nodes[wi] = node;
+        }
+        w
+    }
+
+    fn empty_node() -> WideNode {
+        let lo = f32x8::splat(f32::INFINITY);
+        let hi = f32x8::splat(f32::NEG_INFINITY);
+        WideNode {
+            bounds: [lo, hi, lo, hi, lo, hi],
+            child: [0; 8],
+            meta: [INTERIOR; 8],
+        }
+    }
+
+    /// Packs triangles `first..first + count` into blocks of 8; returns the first block.
+    fn push_blocks(&mut self, prims: &PrimSet, first: u32, count: u32) -> u32 {
+        let b0 = self.blocks.len() as u32;
+        let tris = &prims.triangles[first as usize..(first + count) as usize];
+        for (k, chunk) in tris.chunks(8).enumerate() {
+            self.blocks.push(TriBlock {
+                tri: Triangle8::new(chunk),
+                first: first + 8 * k as u32,
+                count: chunk.len() as u32,
+            });
+        }
+        b0
+    }
+
+    /// Depth of the deepest leaf slot (root node = 1); 0 when empty.
+    pub fn depth(&self) -> usize {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let mut best = 0;
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((i, d)) = stack.pop() {
+            best = best.max(d);
+            let n = &self.nodes[i];
+            for s in 0..8 {
+                let valid = n.bounds[0].to_array()[s] <= n.bounds[1].to_array()[s];
+                if valid && n.meta[s] == INTERIOR {
+                    stack.push((n.child[s] as usize, d + 1));
+                }
+            }
+        }
+        best
+    }
+}
+
+/// One ray prepared for the slab tests of a [`WideNode`].
+struct BoxRay {
+    origin: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    /// Index in `WideNode::bounds` of the near and far plane per axis (by the sign of
+    /// 1/d: lo when positive).
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl BoxRay {
+    #[inline]
+    fn new(r: &Ray1) -> BoxRay {
+        let neg = [0, 1, 2].map(|a| (r.inv_dir[a] < 0.0) as usize);
+        BoxRay {
+            origin: [0, 1, 2].map(|a| f32x8::splat(r.origin[a])),
+            inv_dir: [0, 1, 2].map(|a| f32x8::splat(r.inv_dir[a])),
+            near: [0, 1, 2].map(|a| 2 * a + neg[a]),
+            far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
+        }
+    }
+
+    /// The slab test of `BvhNode::intersect_1` on the eight slots: bit i of the mask is
+    /// set when slot i is met with 0 <= t and t <= t_max (far bound widened by
+    /// 1 + 2γ(3)); the entry distances. With finite origins and 1/d (the slab rule)
+    /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
+    /// near plane by the sign of 1/d gives the same value as the binary test's min.
+    #[inline]
+    fn test(&self, n: &WideNode, t_max: f32) -> (u32, f32x8) {
+        let t = |plane: usize, a: usize| (n.bounds[plane] - self.origin[a]) * self.inv_dir[a];
+        let near = t(self.near[0], 0)
+            .fast_max(t(self.near[1], 1))
+            .fast_max(t(self.near[2], 2).fast_max(f32x8::ZERO));
+        let far = t(self.far[0], 0)
+            .fast_min(t(self.far[1], 1))
+            .fast_min(t(self.far[2], 2).fast_min(f32x8::splat(t_max)))
+            * f32x8::splat(FAR_WIDEN);
+        (near.le(far).bits(), near)
+    }
+}
+
+/// A stack entry: slot `child` and `meta` packed (meta in the high half).
+#[inline]
+fn pack(child: u32, meta: u32) -> u64 {
+    child as u64 | (meta as u64) << 32
+}
+
+/// Records a hit as `PrimSet::record_1` does: nearer wins, an exact tie goes to the
+/// lower object index (the earlier candidate on equal objects).
+#[inline]
+fn record(prims: &PrimSet, hit: &mut Hit1, t: f32, u: f32, v: f32, code: i32) {
+    if t < hit.t || (t == hit.t && hit.is_hit() && prims.object(code) < prims.object(hit.prim)) {
+        *hit = Hit1 {
+            t,
+            prim: code,
+            u,
+            v,
+        };
+    }
+}
+
+impl Bvh {
+    /// Nearest hit below `hit.t`, recorded in `hit` (the 8-wide tree, then the
+    /// unbounded quadrics and the floor).
+    pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        let w = &self.wide;
+        if !w.nodes.is_empty() {
+            let br = BoxRay::new(r);
+            let tr = TriRay8::new(r);
+            // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
+            // profile (perf, memset) and 30 % of this walk's own time. Entries below
+            // `sp` are always written before they are read.
+            let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
+            let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
+            let mut sp = 0usize;
+            let mut cur = pack(0, INTERIOR);
+            'walk: loop {
+                let (child, meta) = (cur as u32, (cur >> 32) as u32);
+                if meta == INTERIOR {
+                    let node = &w.nodes[child as usize];
+                    steps.boxes += 1;
+                    let (mut bits, near) = br.test(node, hit.t);
+                    if bits != 0 {
+                        let first = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if bits == 0 {
+                            cur = pack(node.child[first], node.meta[first]);
+                            continue 'walk;
+                        }
+                        // two or more: sort by entry distance (keys: the distance's bits,
+                        // >= 0 so ordered as integers, then the slot), push all but the
+                        // nearest, farthest first
+                        let nd = near.to_array();
+                        let key =
+                            |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+                        let mut keys = [0u64; 8];
+                        keys[0] = key(first);
+                        let mut n = 1;
+                        while bits != 0 {
+                            let s = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            // insertion, descending
+                            let k = key(s);
+                            let mut j = n;
+                            while j > 0 && keys[j - 1] < k {
+                                keys[j] = keys[j - 1];
+                                j -= 1;
+                            }
+                            keys[j] = k;
+                            n += 1;
+                        }
+                        for &k in &keys[..n - 1] {
+                            let s = (k & 0xff) as usize;
+                            refs[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
+                            dists[sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
+                            sp += 1;
+                        }
+                        let s = (keys[n - 1] & 0xff) as usize;
+                        cur = pack(node.child[s], node.meta[s]);
+                        continue 'walk;
+                    }
+                } else {
+                    self.leaf_intersect_1(child, meta, r, &tr, hit, steps);
+                }
+                // pop the next subtree still in front of the nearest hit
+                loop {
+                    if sp == 0 {
+                        break 'walk;
+                    }
+                    sp -= 1;
+                    // SAFETY: entries 0..sp (before the decrement) were written above.
+                    let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
+                    if d <= hit.t {
+                        cur = rf;
+                        break;
+                    }
+                }
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
+        }
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
+        }
+    }
+
+    #[inline]
+    fn leaf_intersect_1(
+        &self,
+        child: u32,
+        meta: u32,
+        r: &Ray1,
+        tr: &TriRay8,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
+        let count = meta & COUNT_MASK;
+        let kind = PrimKind::from_u32(meta >> 28);
+        steps.prims += count as u64;
+        if kind != PrimKind::Triangle {
+            if kind == PrimKind::Quadric {
+                steps.quadrics += count as u64;
+            }
+            self.prims
+                .intersect_1(kind, child as usize, count as usize, r, hit);
+            return;
+        }
+        let nb = count.div_ceil(8) as usize;
+        for b in &self.wide.blocks[child as usize..child as usize + nb] {
+            let (m, t, u, v) = b.tri.intersect_1x8(tr, hit.t);
+            let mut bits = m.bits();
+            if bits == 0 {
+                continue;
+            }
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            if bits & (bits - 1) != 0 {
+                // several lanes: keep those at the smallest t, in lane (= index) order
+                let tmin = (0..8)
+                    .filter(|&l| bits >> l & 1 == 1)
+                    .fold(f32::INFINITY, |a, l| a.min(t[l]));
+                for l in 0..8 {
+                    if t[l] != tmin {
+                        bits &= !(1 << l);
+                    }
+                }
+            }
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let code = prim_code(PrimKind::Triangle, b.first as usize + l);
+                record(&self.prims, hit, t[l], u[l], v[l], code);
+            }
+        }
+    }
+
+    /// Whether anything lies on the ray with 0 < t < t_max (the floor, the unbounded
+    /// quadrics, then the 8-wide tree, unordered; stops at the first blocker).
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
+                return true;
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            if self
+                .prims
+                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
+            {
+                return true;
+            }
+        }
+        let w = &self.wide;
+        if w.nodes.is_empty() {
+            return false;
+        }
+        let br = BoxRay::new(r);
+        let tr = TriRay8::new(r);
+        // uninitialised for the same reason as in `intersect_1`
+        let mut stack = [MaybeUninit::<u32>::uninit(); WIDE_STACK];
+        stack[0] = MaybeUninit::new(0);
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            // SAFETY: entries 0..sp (before the decrement) were written.
+            let ni = unsafe { stack[sp].assume_init() };
+            let node = &w.nodes[ni as usize];
+            steps.boxes += 1;
+            let (mut bits, _) = br.test(node, t_max);
+            while bits != 0 {
+                let s = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let meta = node.meta[s];
+                if meta == INTERIOR {
+                    stack[sp] = MaybeUninit::new(node.child[s]);
+                    sp += 1;
+                } else if self.leaf_occluded_1(node.child[s], meta, r, &tr, t_max, steps) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    #[inline]
+    fn leaf_occluded_1(
+        &self,
+        child: u32,
+        meta: u32,
+        r: &Ray1,
+        tr: &TriRay8,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        let count = meta & COUNT_MASK;
+        let kind = PrimKind::from_u32(meta >> 28);
+        steps.prims += count as u64;
+        if kind != PrimKind::Triangle {
+            if kind == PrimKind::Quadric {
+                steps.quadrics += count as u64;
+            }
+            return self
+                .prims
+                .occluded_1(kind, child as usize, count as usize, r, t_max);
+        }
+        let nb = count.div_ceil(8) as usize;
+        self.wide.blocks[child as usize..child as usize + nb]
+            .iter()
+            .any(|b| b.tri.occluded_1x8(tr, t_max).any())
+    }
+}
