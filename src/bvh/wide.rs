@@ -15,9 +15,9 @@
 //! lane to [`Triangle32::intersect_1`]). Spheres and clipped quadrics in leaves go
 //! through [`PrimSet::intersect_1`]/[`PrimSet::occluded_1`] one by one.
 //!
-//! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits, an exact tie in
-//! t goes to the lower object index, the unbounded quadrics and the floor after the
-//! tree. Step counters: `boxes` counts **wide node tests** (one per node visited, each
+//! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
+//! non-finite origin or direction skips the tree), an exact tie in t goes to the lower
+//! object index, the unbounded quadrics and the floor after the tree. Step counters: `boxes` counts **wide node tests** (one per node visited, each
 //! of up to 8 boxes), `prims` the primitives tested (real triangles, not padding lanes),
 //! `quadrics` the quadric tests.
 //!
@@ -282,6 +282,14 @@ impl BoxRay {
     }
 }
 
+/// Whether the ray enters the tree: a NaN or infinite origin or direction never hits
+/// a bounded primitive (their kernels give NaN), and would make the slab test NaN,
+/// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included.
+#[inline]
+fn finite(r: &Ray1) -> bool {
+    r.origin.is_finite() && r.inv_dir.is_finite()
+}
+
 /// A stack entry: slot `child` and `meta` packed (meta in the high half).
 #[inline]
 fn pack(child: u32, meta: u32) -> u64 {
@@ -307,7 +315,7 @@ impl Bvh {
     /// unbounded quadrics and the floor).
     pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         let w = &self.wide;
-        if !w.nodes.is_empty() {
+        if !w.nodes.is_empty() && finite(r) {
             let br = BoxRay::new(r);
             let tr = TriRay8::new(r);
             // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
@@ -462,7 +470,7 @@ impl Bvh {
             }
         }
         let w = &self.wide;
-        if w.nodes.is_empty() {
+        if w.nodes.is_empty() || !finite(r) {
             return false;
         }
         let br = BoxRay::new(r);
