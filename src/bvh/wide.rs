@@ -63,16 +63,25 @@ const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 
 /// Up to eight triangles of one leaf, SoA, with the index of the first in
 /// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
-/// that never hits). 320 B = five cache lines.
+/// that never hits), and per lane the box of the binary leaf the triangle came from
+/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines.
+///
+/// A lane's triangle is tested only when the ray passes its binary leaf's box: then a
+/// merged leaf tests exactly the triangles the binary walk reaches (the slab test is
+/// monotone under box containment, so passing the leaf's box implies passing every
+/// ancestor's). Without it, the larger merged box let the wide walk find hits the
+/// binary and packet walks miss (a ray lying in a box face with a ±0 direction
+/// component, see `math::packet`), so packet lanes and single rays differed.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriBlock {
     pub tri: Triangle8,
+    pub bounds: [f32x8; 6],
     pub first: u32,
     pub count: u32,
 }
 
-const _: () = assert!(std::mem::size_of::<TriBlock>() == 320);
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
 
 /// The 8-wide tree over the same primitives as the binary one (it owns copies of the
 /// triangles in blocks; the primitive codes it reports index `PrimSet`).
@@ -132,6 +141,14 @@ impl WideBvh {
             let s = span[i]?;
             (nodes[i].is_leaf() || s.count <= MERGE_MAX).then_some(s)
         };
+        // each triangle's binary leaf box
+        let mut leaf_box = vec![super::Aabb::EMPTY; prims.triangles.len()];
+        for n in nodes {
+            if n.is_leaf() && n.kind() == PrimKind::Triangle {
+                let (f, c) = (n.first as usize, n.count() as usize);
+                leaf_box[f..f + c].fill(n.bounds());
+            }
+        }
         w.nodes.reserve(nodes.len() / 4 + 1);
         w.nodes.push(Self::empty_node());
         // (wide node to fill, its binary children)
@@ -175,7 +192,7 @@ impl WideBvh {
                     Some(s) => {
                         node.meta[slot] = s.count | s.kind << 28;
                         node.child[slot] = if s.kind == PrimKind::Triangle as u32 {
-                            w.push_blocks(prims, s.first, s.count)
+                            w.push_blocks(prims, &leaf_box, s.first, s.count)
                         } else {
                             s.first
                         };
@@ -207,12 +224,27 @@ impl WideBvh {
     }
 
     /// Packs triangles `first..first + count` into blocks of 8; returns the first block.
-    fn push_blocks(&mut self, prims: &PrimSet, first: u32, count: u32) -> u32 {
+    fn push_blocks(
+        &mut self,
+        prims: &PrimSet,
+        leaf_box: &[super::Aabb],
+        first: u32,
+        count: u32,
+    ) -> u32 {
         let b0 = self.blocks.len() as u32;
-        let tris = &prims.triangles[first as usize..(first + count) as usize];
-        for (k, chunk) in tris.chunks(8).enumerate() {
+        let range = first as usize..(first + count) as usize;
+        let tris = &prims.triangles[range.clone()];
+        for (k, (chunk, boxes)) in tris.chunks(8).zip(leaf_box[range].chunks(8)).enumerate() {
+            let mut lanes = [[f32::INFINITY; 8], [f32::NEG_INFINITY; 8]].repeat(3);
+            for (l, b) in boxes.iter().enumerate() {
+                for a in 0..3 {
+                    lanes[2 * a][l] = b.lo[a];
+                    lanes[2 * a + 1][l] = b.hi[a];
+                }
+            }
             self.blocks.push(TriBlock {
                 tri: Triangle8::new(chunk),
+                bounds: std::array::from_fn(|i| f32x8::new(lanes[i])),
                 first: first + 8 * k as u32,
                 count: chunk.len() as u32,
             });
@@ -269,8 +301,8 @@ impl BoxRay {
     /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
     /// near plane by the sign of 1/d gives the same value as the binary test's min.
     #[inline]
-    fn test(&self, n: &WideNode, t_max: f32) -> (u32, f32x8) {
-        let t = |plane: usize, a: usize| (n.bounds[plane] - self.origin[a]) * self.inv_dir[a];
+    fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+        let t = |plane: usize, a: usize| (bounds[plane] - self.origin[a]) * self.inv_dir[a];
         let near = t(self.near[0], 0)
             .fast_max(t(self.near[1], 1))
             .fast_max(t(self.near[2], 2).fast_max(f32x8::ZERO));
@@ -330,7 +362,7 @@ impl Bvh {
                 if meta == INTERIOR {
                     let node = &w.nodes[child as usize];
                     steps.boxes += 1;
-                    let (mut bits, near) = br.test(node, hit.t);
+                    let (mut bits, near) = br.test(&node.bounds, hit.t);
                     if bits != 0 {
                         let first = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
@@ -371,7 +403,7 @@ impl Bvh {
                         continue 'walk;
                     }
                 } else {
-                    self.leaf_intersect_1(child, meta, r, &tr, hit, steps);
+                    self.leaf_intersect_1(child, meta, r, &br, &tr, hit, steps);
                 }
                 // pop the next subtree still in front of the nearest hit
                 loop {
@@ -406,6 +438,7 @@ impl Bvh {
         child: u32,
         meta: u32,
         r: &Ray1,
+        br: &BoxRay,
         tr: &TriRay8,
         hit: &mut Hit1,
         steps: &mut Steps,
@@ -423,8 +456,12 @@ impl Bvh {
         }
         let nb = count.div_ceil(8) as usize;
         for b in &self.wide.blocks[child as usize..child as usize + nb] {
+            let (in_box, _) = br.test(&b.bounds, hit.t);
+            if in_box == 0 {
+                continue;
+            }
             let (m, t, u, v) = b.tri.intersect_1x8(tr, hit.t);
-            let mut bits = m.bits();
+            let mut bits = m.bits() & in_box;
             if bits == 0 {
                 continue;
             }
@@ -485,7 +522,7 @@ impl Bvh {
             let ni = unsafe { stack[sp].assume_init() };
             let node = &w.nodes[ni as usize];
             steps.boxes += 1;
-            let (mut bits, _) = br.test(node, t_max);
+            let (mut bits, _) = br.test(&node.bounds, t_max);
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -493,7 +530,7 @@ impl Bvh {
                 if meta == INTERIOR {
                     stack[sp] = MaybeUninit::new(node.child[s]);
                     sp += 1;
-                } else if self.leaf_occluded_1(node.child[s], meta, r, &tr, t_max, steps) {
+                } else if self.leaf_occluded_1(node.child[s], meta, r, &br, &tr, t_max, steps) {
                     return true;
                 }
             }
@@ -507,6 +544,7 @@ impl Bvh {
         child: u32,
         meta: u32,
         r: &Ray1,
+        br: &BoxRay,
         tr: &TriRay8,
         t_max: f32,
         steps: &mut Steps,
@@ -525,6 +563,9 @@ impl Bvh {
         let nb = count.div_ceil(8) as usize;
         self.wide.blocks[child as usize..child as usize + nb]
             .iter()
-            .any(|b| b.tri.occluded_1x8(tr, t_max).any())
+            .any(|b| {
+                let (in_box, _) = br.test(&b.bounds, t_max);
+                in_box != 0 && b.tri.occluded_1x8(tr, t_max).bits() & in_box != 0
+            })
     }
 }
