@@ -19,7 +19,7 @@ use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
 use octaray::geometry::{Hit1, PrimKind, PrimSet, split_code};
-use octaray::math::packet::Ray1;
+use octaray::math::packet::{Mask8, Ray1};
 use octaray::scene::{Object, Quadric, Scene, Shape};
 
 #[derive(Debug, Default)]
@@ -419,8 +419,8 @@ fn kernel_1x8_equals_1x1_per_lane() {
             let r = Ray1::new(o, (aim - o).normalize());
             let tr = TriRay8::new(&r);
             for t_max in [f32::INFINITY, rng.range(0.0, 8.0) as f32] {
-                let (m, t, u, v) = t8.intersect_1x8(&tr, t_max);
-                let occ = t8.occluded_1x8(&tr, t_max);
+                let (m, t, u, v) = t8.intersect_1x8(&tr, Mask8::ALL, t_max);
+                let occ = t8.occluded_1x8(&tr, Mask8::ALL, t_max);
                 for lane in 0..8 {
                     if lane >= len {
                         assert!(!m.lane(lane) && !occ.lane(lane), "padding lane {lane} hit");

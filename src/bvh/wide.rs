@@ -30,7 +30,7 @@ use wide::f32x8;
 use super::{Bvh, STACK_SIZE, Steps};
 use crate::geometry::triangle::{TriRay8, Triangle8};
 use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code};
-use crate::math::packet::{Cmp8, FAR_WIDEN, Ray1};
+use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 
 /// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
 // Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary):
@@ -317,7 +317,7 @@ impl BoxRay {
     /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
     /// near plane by the sign of 1/d gives the same value as the binary test's min.
     #[inline]
-    fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+    fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (Mask8, f32x8) {
         let t = |plane: usize, a: usize| (bounds[plane] - self.origin[a]) * self.inv_dir[a];
         let near = t(self.near[0], 0)
             .fast_max(t(self.near[1], 1))
@@ -326,7 +326,7 @@ impl BoxRay {
             .fast_min(t(self.far[1], 1))
             .fast_min(t(self.far[2], 2).fast_min(f32x8::splat(t_max)))
             * f32x8::splat(FAR_WIDEN);
-        (near.le(far).bits(), near)
+        (near.le(far), near)
     }
 }
 
@@ -394,7 +394,8 @@ impl Bvh {
                 if meta == INTERIOR {
                     let node = &w.nodes[child as usize];
                     steps.boxes += 1;
-                    let (mut bits, near) = br.test(&node.bounds, hit.t);
+                    let (m, near) = br.test(&node.bounds, hit.t);
+                    let mut bits = m.bits();
                     let mut b = bits;
                     while b != 0 {
                         let s = b.trailing_zeros() as usize;
@@ -495,11 +496,11 @@ impl Bvh {
         let nb = count.div_ceil(8) as usize;
         for b in &self.wide.blocks[child as usize..child as usize + nb] {
             let (in_box, _) = br.test(&b.bounds, hit.t);
-            if in_box == 0 {
+            if in_box.none() {
                 continue;
             }
-            let (m, t, u, v) = b.tri.intersect_1x8(tr, hit.t);
-            let mut bits = m.bits() & in_box;
+            let (m, t, u, v) = b.tri.intersect_1x8(tr, in_box, hit.t);
+            let mut bits = m.bits();
             if bits == 0 {
                 continue;
             }
@@ -560,7 +561,13 @@ impl Bvh {
             let ni = unsafe { stack[sp].assume_init() };
             let node = &w.nodes[ni as usize];
             steps.boxes += 1;
-            let (mut bits, _) = br.test(&node.bounds, t_max);
+            let mut bits = br.test(&node.bounds, t_max).0.bits();
+            let mut b = bits;
+            while b != 0 {
+                let s = b.trailing_zeros() as usize;
+                b &= b - 1;
+                w.prefetch(node.child[s], node.meta[s]);
+            }
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -603,7 +610,7 @@ impl Bvh {
             .iter()
             .any(|b| {
                 let (in_box, _) = br.test(&b.bounds, t_max);
-                in_box != 0 && b.tri.occluded_1x8(tr, t_max).bits() & in_box != 0
+                in_box.any() && b.tri.occluded_1x8(tr, in_box, t_max).any()
             })
     }
 }

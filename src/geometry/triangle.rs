@@ -344,9 +344,15 @@ impl Triangle8 {
         }
     }
 
-    /// Lane i: [`Triangle32::intersect_1`] of triangle i (hit in (0, t_max], t, b1, b2).
-    #[inline]
-    pub fn intersect_1x8(&self, r: &TriRay8, t_max: f32) -> (Mask8, f32x8, f32x8, f32x8) {
+    /// Lane i of `active`: [`Triangle32::intersect_1`] of triangle i (hit in (0, t_max],
+    /// t, b1, b2).
+    #[inline(always)]
+    pub fn intersect_1x8(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
         let zero = f32x8::ZERO;
         // translate the vertices to the ray origin
         // permute so that the largest direction component is z
@@ -368,7 +374,7 @@ impl Triangle8 {
         let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
         let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
         let det = e0 + e1 + e2;
-        let valid = (!(any_neg & any_pos)).and_not(det.eq8(zero));
+        let valid = active.and_not(any_neg & any_pos).and_not(det.eq8(zero));
         if valid.none() {
             return (valid, zero, zero, zero);
         }
@@ -405,10 +411,10 @@ impl Triangle8 {
         (valid, t, e1 * inv_det, e2 * inv_det)
     }
 
-    /// Lanes whose triangle meets the ray with 0 < t < t_max.
-    #[inline]
-    pub fn occluded_1x8(&self, r: &TriRay8, t_max: f32) -> Mask8 {
-        let (m, t, _, _) = self.intersect_1x8(r, t_max);
+    /// Lanes of `active` whose triangle meets the ray with 0 < t < t_max.
+    #[inline(always)]
+    pub fn occluded_1x8(&self, r: &TriRay8, active: Mask8, t_max: f32) -> Mask8 {
+        let (m, t, _, _) = self.intersect_1x8(r, active, t_max);
         m & t.lt(f32x8::splat(t_max))
     }
 }
