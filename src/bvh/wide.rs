@@ -17,8 +17,9 @@
 //!
 //! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
 //! non-finite origin or direction skips the tree), an exact tie in t goes to the lower
-//! object index, the unbounded quadrics and the floor after the tree. Step counters: `boxes` counts **wide node tests** (one per node visited, each
-//! of up to 8 boxes), `prims` the primitives tested (real triangles, not padding lanes),
+//! object index, the unbounded quadrics and the floor after the tree. Step counters:
+//! `boxes` counts **wide node tests** (one per node visited, each of up to 8 boxes),
+//! `prims` the primitives of the leaves reached (real triangles, not padding lanes),
 //! `quadrics` the quadric tests.
 //!
 //! [`Triangle32::intersect_1`]: crate::geometry::triangle::Triangle32::intersect_1
@@ -33,7 +34,8 @@ use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code};
 use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 
 /// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
-// Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary):
+// Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary,
+// before the blocks had leaf boxes and before prefetching):
 // 8: 2.07 / 5.81 Mrays/s; 4: 1.93 / 5.62; 1 (binary leaves only): 1.37 / 5.76.
 pub const MERGE_MAX: u32 = 8;
 
@@ -66,8 +68,8 @@ const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 /// that never hits), and per lane the box of the binary leaf the triangle came from
 /// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines.
 ///
-/// A lane's triangle is tested only when the ray passes its binary leaf's box: then a
-/// merged leaf tests exactly the triangles the binary walk reaches (the slab test is
+/// A lane's hit counts only when the ray also passes its binary leaf's box: then a
+/// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
 /// monotone under box containment, so passing the leaf's box implies passing every
 /// ancestor's). Without it, the larger merged box let the wide walk find hits the
 /// binary and packet walks miss (a ray lying in a box face with a ±0 direction
