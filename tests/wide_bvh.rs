@@ -421,13 +421,12 @@ fn kernel_1x8_equals_1x1_per_lane() {
             for t_max in [f32::INFINITY, rng.range(0.0, 8.0) as f32] {
                 let (m, t, u, v) = t8.intersect_1x8(&tr, Mask8::ALL, t_max);
                 let occ = t8.occluded_1x8(&tr, Mask8::ALL, t_max);
-                for lane in 0..8 {
-                    if lane >= len {
-                        assert!(!m.lane(lane) && !occ.lane(lane), "padding lane {lane} hit");
-                        continue;
-                    }
+                for lane in len..8 {
+                    assert!(!m.lane(lane) && !occ.lane(lane), "padding lane {lane} hit");
+                }
+                for (lane, tri) in block.iter().enumerate() {
                     lanes += 1;
-                    let one = block[lane].intersect_1(&r, t_max);
+                    let one = tri.intersect_1(&r, t_max);
                     let eight = m
                         .lane(lane)
                         .then(|| (t.to_array()[lane], u.to_array()[lane], v.to_array()[lane]));
@@ -436,7 +435,7 @@ fn kernel_1x8_equals_1x1_per_lane() {
                         eight.map(|h| (h.0.to_bits(), h.1.to_bits(), h.2.to_bits())),
                         "lane {lane}, ray {r:?}, t_max {t_max}"
                     );
-                    assert_eq!(occ.lane(lane), block[lane].occluded_1(&r, t_max));
+                    assert_eq!(occ.lane(lane), tri.occluded_1(&r, t_max));
                     hits += one.is_some() as usize;
                 }
             }

@@ -263,10 +263,10 @@ impl WideBvh {
             if let Some(n) = self.nodes.get(child as usize) {
                 prefetch_lines(n);
             }
-        } else if meta >> 28 == PrimKind::Triangle as u32 {
-            if let Some(b) = self.blocks.get(child as usize) {
-                prefetch_lines(&b.tri);
-            }
+        } else if meta >> 28 == PrimKind::Triangle as u32
+            && let Some(b) = self.blocks.get(child as usize)
+        {
+            prefetch_lines(&b.tri);
         }
     }
 
@@ -288,6 +288,24 @@ impl WideBvh {
             }
         }
         best
+    }
+}
+
+/// One ray prepared for the wide walk: the ray, its slab-test and its triangle-test forms.
+struct WideRay<'a> {
+    r: &'a Ray1,
+    boxes: BoxRay,
+    tris: TriRay8,
+}
+
+impl WideRay<'_> {
+    #[inline]
+    fn new(r: &Ray1) -> WideRay<'_> {
+        WideRay {
+            r,
+            boxes: BoxRay::new(r),
+            tris: TriRay8::new(r),
+        }
     }
 }
 
@@ -382,8 +400,8 @@ impl Bvh {
     pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         let w = &self.wide;
         if !w.nodes.is_empty() && finite(r) {
-            let br = BoxRay::new(r);
-            let tr = TriRay8::new(r);
+            let wr = WideRay::new(r);
+            let br = &wr.boxes;
             // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
             // profile (perf, memset) and 30 % of this walk's own time. Entries below
             // `sp` are always written before they are read.
@@ -444,7 +462,7 @@ impl Bvh {
                         continue 'walk;
                     }
                 } else {
-                    self.leaf_intersect_1(child, meta, r, &br, &tr, hit, steps);
+                    self.leaf_intersect_1(child, meta, &wr, hit, steps);
                 }
                 // pop the next subtree still in front of the nearest hit
                 loop {
@@ -478,9 +496,7 @@ impl Bvh {
         &self,
         child: u32,
         meta: u32,
-        r: &Ray1,
-        br: &BoxRay,
-        tr: &TriRay8,
+        wr: &WideRay,
         hit: &mut Hit1,
         steps: &mut Steps,
     ) {
@@ -492,7 +508,7 @@ impl Bvh {
                 steps.quadrics += count as u64;
             }
             self.prims
-                .intersect_1(kind, child as usize, count as usize, r, hit);
+                .intersect_1(kind, child as usize, count as usize, wr.r, hit);
             return;
         }
         let nb = count.div_ceil(8) as usize;
@@ -502,11 +518,11 @@ impl Bvh {
             // hottest instruction (perf annotate: 15.6 % of its samples); bench-trace
             // torus100k incoherent mode=1, 1 thread, interleaved runs at load 7: 2.70,
             // 2.78, 2.75 Mrays/s against 2.76, 2.87, 2.78 for this order.
-            let (m, t, u, v) = b.tri.intersect_1x8(tr, Mask8::ALL, hit.t);
+            let (m, t, u, v) = b.tri.intersect_1x8(&wr.tris, Mask8::ALL, hit.t);
             if m.none() {
                 continue;
             }
-            let mut bits = (m & br.test(&b.bounds, hit.t).0).bits();
+            let mut bits = (m & wr.boxes.test(&b.bounds, hit.t).0).bits();
             if bits == 0 {
                 continue;
             }
@@ -516,8 +532,8 @@ impl Bvh {
                 let tmin = (0..8)
                     .filter(|&l| bits >> l & 1 == 1)
                     .fold(f32::INFINITY, |a, l| a.min(t[l]));
-                for l in 0..8 {
-                    if t[l] != tmin {
+                for (l, &tl) in t.iter().enumerate() {
+                    if tl != tmin {
                         bits &= !(1 << l);
                     }
                 }
@@ -555,8 +571,8 @@ impl Bvh {
         if w.nodes.is_empty() || !finite(r) {
             return false;
         }
-        let br = BoxRay::new(r);
-        let tr = TriRay8::new(r);
+        let wr = WideRay::new(r);
+        let br = &wr.boxes;
         // uninitialised for the same reason as in `intersect_1`
         let mut stack = [MaybeUninit::<u32>::uninit(); WIDE_STACK];
         stack[0] = MaybeUninit::new(0);
@@ -581,7 +597,7 @@ impl Bvh {
                 if meta == INTERIOR {
                     stack[sp] = MaybeUninit::new(node.child[s]);
                     sp += 1;
-                } else if self.leaf_occluded_1(node.child[s], meta, r, &br, &tr, t_max, steps) {
+                } else if self.leaf_occluded_1(node.child[s], meta, &wr, t_max, steps) {
                     return true;
                 }
             }
@@ -594,9 +610,7 @@ impl Bvh {
         &self,
         child: u32,
         meta: u32,
-        r: &Ray1,
-        br: &BoxRay,
-        tr: &TriRay8,
+        wr: &WideRay,
         t_max: f32,
         steps: &mut Steps,
     ) -> bool {
@@ -609,14 +623,14 @@ impl Bvh {
             }
             return self
                 .prims
-                .occluded_1(kind, child as usize, count as usize, r, t_max);
+                .occluded_1(kind, child as usize, count as usize, wr.r, t_max);
         }
         let nb = count.div_ceil(8) as usize;
         self.wide.blocks[child as usize..child as usize + nb]
             .iter()
             .any(|b| {
-                let m = b.tri.occluded_1x8(tr, Mask8::ALL, t_max);
-                m.any() && (m & br.test(&b.bounds, t_max).0).any()
+                let m = b.tri.occluded_1x8(&wr.tris, Mask8::ALL, t_max);
+                m.any() && (m & wr.boxes.test(&b.bounds, t_max).0).any()
             })
     }
 }

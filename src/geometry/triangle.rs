@@ -330,17 +330,13 @@ impl Triangle8 {
     pub fn new(tris: &[Triangle32]) -> Triangle8 {
         assert!(!tris.is_empty() && tris.len() <= 8, "1 to 8 triangles");
         let pad = tris[0].v[0];
-        let mut v = [[[0.0f32; 8]; 3]; 3];
-        for lane in 0..8 {
-            let t = tris.get(lane).map_or([pad; 3], |t| t.v);
-            for (vi, p) in t.iter().enumerate() {
-                for axis in 0..3 {
-                    v[vi][axis][lane] = p[axis];
-                }
-            }
-        }
+        let vertex = |lane: usize, vi: usize| tris.get(lane).map_or(pad, |t| t.v[vi]);
         Triangle8 {
-            v: v.map(|c| c.map(f32x8::new)),
+            v: std::array::from_fn(|vi| {
+                std::array::from_fn(|axis| {
+                    f32x8::new(std::array::from_fn(|lane| vertex(lane, vi)[axis]))
+                })
+            }),
         }
     }
 
