@@ -351,7 +351,9 @@ fn empty_tree_has_no_wide_nodes_and_misses() {
 
 #[test]
 fn every_triangle_is_in_exactly_one_block_lane() {
-    let bvh = torus_bvh();
+    // large enough (> 4 MiB of blocks) for the huge-page copy of the block array
+    let bvh = Bvh::build(PrimSet::from_triangles(torus(320, 160)));
+    assert!(bvh.wide.blocks.len() * std::mem::size_of_val(&bvh.wide.blocks[0]) > 4 << 20);
     let n = bvh.prims.triangles.len();
     let mut seen = vec![0u32; n];
     for b in &bvh.wide.blocks {
