@@ -356,6 +356,8 @@ impl BoxRay {
 /// transparent huge pages (`madvise(MADV_HUGEPAGE)`, before the pages are touched), so
 /// incoherent rays walking megabytes of nodes and blocks miss the TLB less. Embree does
 /// the same by default on Linux. Small arrays, other systems: `v` unchanged.
+// Measured: bench-trace torus100k incoherent mode=1 alone, 1 thread, interleaved at
+// load ~7: 1.12, 1.05, 1.30 Mrays/s with, 0.91, 0.99, 0.89 without.
 fn huge_pages<T: Copy>(v: Vec<T>) -> Vec<T> {
     #[cfg(target_os = "linux")]
     {
