@@ -5,7 +5,7 @@
 //! surface area is replaced by its two children until there are eight or only leaves
 //! left; O(n), every binary node is opened at most once). A binary subtree of at most
 //! [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, becomes one
-//! leaf: one block of [`Triangle8`] for triangles instead of several nearly empty ones.
+//! leaf: full blocks of [`Triangle8`] for triangles instead of several nearly empty ones.
 //! The slot boxes are the binary nodes' boxes, bit for bit, so a slot's slab test gives
 //! the same answer the binary traversal gets for that subtree.
 //!
@@ -37,7 +37,10 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 // Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary,
 // before the blocks had leaf boxes and before prefetching):
 // 8: 2.07 / 5.81 Mrays/s; 4: 1.93 / 5.62; 1 (binary leaves only): 1.37 / 5.76.
-pub const MERGE_MAX: u32 = 8;
+// With leaf boxes, prefetching and huge pages, four interleaved pairs at load ~2.4,
+// mode=1 alone: 16: incoherent 2.86, 2.97, 2.77, 2.73 / primary 6.05, 6.49, 6.62,
+// 6.70; 8: 2.56, 2.33, 3.09, 2.28 / 6.48, 6.24, 6.21, 5.32.
+pub const MERGE_MAX: u32 = 16;
 
 /// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
 const INTERIOR: u32 = 0;
