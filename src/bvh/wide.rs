@@ -39,7 +39,10 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 // 8: 2.07 / 5.81 Mrays/s; 4: 1.93 / 5.62; 1 (binary leaves only): 1.37 / 5.76.
 // With leaf boxes, prefetching and huge pages, four interleaved pairs at load ~2.4,
 // mode=1 alone: 16: incoherent 2.86, 2.97, 2.77, 2.73 / primary 6.05, 6.49, 6.62,
-// 6.70; 8: 2.56, 2.33, 3.09, 2.28 / 6.48, 6.24, 6.21, 5.32.
+// 6.70; 8: 2.56, 2.33, 3.09, 2.28 / 6.48, 6.24, 6.21, 5.32. Whole bench-trace, three
+// interleaved pairs at load ~1.5: 16: incoherent 3.45, 3.55, 3.32 / primary 6.74, 6.70,
+// 6.61; 8: 3.09, 3.48, 3.48 / 6.96, 7.03, 7.00. So 16 trades ~5 % of coherent single
+// rays for ~3 % of incoherent ones (the bar); revisit with a quieter machine.
 pub const MERGE_MAX: u32 = 16;
 
 /// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
