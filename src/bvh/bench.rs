@@ -2,7 +2,8 @@
 //! and the criterion benches: a triangle mesh from an OBJ file, 1024² coherent primary
 //! rays in 4 × 2 pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞),
 //! build best of 3 and trace best of 5, reported in the Embree harness's fields for
-//! the packet path (mode=8) and the single-ray path (mode=1) of the same BVH.
+//! the packet path (mode=8), the single-ray path (mode=1, the 8-wide tree collapsed
+//! from the same BVH) and the binary single-ray path (mode=1b) of the same BVH.
 
 use std::path::Path;
 use std::time::Instant;
@@ -11,6 +12,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use wide::f32x8;
 
+use super::wide::WideBvh;
 use super::{Bvh, Steps};
 use crate::geometry::triangle::Triangle32;
 use crate::geometry::{Hit1, PrimSet};
@@ -104,8 +106,10 @@ pub fn incoherent_rays(n: usize, seed: u64) -> RaySet {
 /// How rays are traced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
-    /// `Bvh::intersect_1`, one ray at a time.
+    /// `Bvh::intersect_1`, one ray at a time through the 8-wide tree.
     Single,
+    /// `Bvh::intersect_1_binary`, one ray at a time through the binary tree (`mode=1b`).
+    SingleBinary,
     /// `Bvh::intersect_x8`, 8 consecutive rays as one packet.
     Packet8,
 }
@@ -113,8 +117,17 @@ pub enum Mode {
 impl Mode {
     pub fn width(self) -> usize {
         match self {
-            Mode::Single => 1,
+            Mode::Single | Mode::SingleBinary => 1,
             Mode::Packet8 => 8,
+        }
+    }
+
+    /// The `mode=` field: the width, `1b` for the binary single-ray path.
+    pub fn label(self) -> &'static str {
+        match self {
+            Mode::Single => "1",
+            Mode::SingleBinary => "1b",
+            Mode::Packet8 => "8",
         }
     }
 }
@@ -134,6 +147,14 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                         let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
                         let mut h = Hit1::new(f32::INFINITY);
                         bvh.intersect_1(&r, &mut h, &mut steps);
+                        *t = if h.is_hit() { h.t } else { -1.0 };
+                    }
+                }
+                Mode::SingleBinary => {
+                    for (i, t) in out.iter_mut().enumerate() {
+                        let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
+                        let mut h = Hit1::new(f32::INFINITY);
+                        bvh.intersect_1_binary(&r, &mut h, &mut steps);
                         *t = if h.is_hit() { h.t } else { -1.0 };
                     }
                 }
@@ -192,7 +213,7 @@ impl std::fmt::Display for TraceRun {
             self.mesh,
             self.rays,
             self.threads,
-            self.mode.width(),
+            self.mode.label(),
             self.tris,
             self.build_ms,
             self.trace_ms,
@@ -265,9 +286,30 @@ pub fn run(
             bvh.sah_cost(),
             tris.len() - bvh.prims.triangles.len()
         );
+        // the collapse to the 8-wide tree is part of `Bvh::build` (so of build_ms);
+        // timed again here on its own, best of 3
+        let collapse_ms = (0..3)
+            .map(|_| {
+                let start = Instant::now();
+                let w = WideBvh::collapse(&bvh.nodes, &bvh.prims);
+                let ms = start.elapsed().as_secs_f64() * 1e3;
+                std::hint::black_box(w);
+                ms
+            })
+            .fold(f64::INFINITY, f64::min);
+        let w = &bvh.wide;
+        let lanes: u64 = w.blocks.iter().map(|b| b.count as u64).sum();
+        let _ = writeln!(
+            log,
+            "octaray wide bvh: collapse_ms={collapse_ms:.1}, {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used)",
+            w.nodes.len(),
+            w.depth(),
+            w.blocks.len(),
+            lanes as f64 / w.blocks.len().max(1) as f64
+        );
         let mut runs = Vec::new();
         for rays in [primary_rays(1024, 1024), incoherent_rays(1 << 20, 7)] {
-            for mode in [Mode::Packet8, Mode::Single] {
+            for mode in [Mode::Packet8, Mode::Single, Mode::SingleBinary] {
                 let (trace_ms, hits, mean_t, steps) = timed_trace(&bvh, &rays, mode, reps);
                 let n = rays.origin.len() as f64;
                 let run = TraceRun {
@@ -287,10 +329,15 @@ pub fn run(
                 let _ = writeln!(out, "{run}");
                 let _ = writeln!(
                     log,
-                    "  ({} mode={}: {:.1} box tests and {:.1} triangle tests per ray)",
+                    "  ({} mode={}: {:.1} {} and {:.1} triangle tests per ray)",
                     run.rays,
-                    mode.width(),
+                    mode.label(),
                     run.boxes_per_ray,
+                    if mode == Mode::Single {
+                        "wide node tests (8 boxes each)"
+                    } else {
+                        "box tests"
+                    },
                     run.prims_per_ray
                 );
                 runs.push(run);

@@ -5,7 +5,9 @@
 //! and the floor cannot have finite boxes and are tested after the tree, in that
 //! order, on every query. Queries come in two widths with the same contract:
 //! [`Bvh::intersect_x8`]/[`Bvh::occluded_x8`] for packets and
-//! [`Bvh::intersect_1`]/[`Bvh::occluded_1`] for single rays.
+//! [`Bvh::intersect_1`]/[`Bvh::occluded_1`] for single rays, which walk an 8-wide tree
+//! collapsed from the binary one ([`wide`]); the binary single-ray walk stays as
+//! [`Bvh::intersect_1_binary`]/[`Bvh::occluded_1_binary`] (benches, test oracle).
 //!
 //! Edge rules: a hit counts iff 0 < t < t_max; an exact tie in t goes to the lower
 //! object index (file order), the floor last; shadow (any-hit) queries stop at the
@@ -17,6 +19,7 @@ pub mod node;
 pub mod traverse_1;
 pub mod traverse_x8;
 pub mod validate;
+pub mod wide;
 
 pub use node::{Aabb, BvhNode};
 
@@ -43,6 +46,8 @@ pub struct Steps {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: PrimSet,
+    /// The same tree collapsed to 8 children per node, for single rays.
+    pub wide: wide::WideBvh,
 }
 
 impl Bvh {
@@ -50,7 +55,8 @@ impl Bvh {
     /// reordering them into leaf order. Validated in debug builds.
     pub fn build(mut prims: PrimSet) -> Bvh {
         let nodes = build::build(&mut prims);
-        let bvh = Bvh { nodes, prims };
+        let wide = wide::WideBvh::collapse(&nodes, &prims);
+        let bvh = Bvh { nodes, prims, wide };
         #[cfg(debug_assertions)]
         if let Err(e) = bvh.validate() {
             panic!("BVH invariant broken: {e}");

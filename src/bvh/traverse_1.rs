@@ -1,5 +1,6 @@
-//! Single-ray traversal of the same tree: the path of incoherent rays and the
-//! baseline the packet path is measured against.
+//! Single-ray traversal of the binary tree: the baseline the packet path and the
+//! 8-wide single-ray path (`wide.rs`, behind `Bvh::intersect_1`) are measured against,
+//! and the wide path's test oracle.
 //!
 //! Ordered, depth first: at an interior node both children's boxes are tested; the
 //! nearer is visited first and the farther pushed with its entry distance, skipped
@@ -11,7 +12,7 @@ use crate::math::packet::Ray1;
 
 impl Bvh {
     /// Nearest hit below `hit.t`, recorded in `hit`.
-    pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+    pub fn intersect_1_binary(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         if let Some(root) = self.nodes.first() {
             steps.boxes += 1;
             if root.intersect_1(r, hit.t).is_some() {
@@ -86,7 +87,7 @@ impl Bvh {
     }
 
     /// Whether anything lies on the ray with 0 < t < t_max.
-    pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+    pub fn occluded_1_binary(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
         if self.prims.floor.is_some() {
             steps.prims += 1;
             if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {

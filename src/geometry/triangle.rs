@@ -284,6 +284,137 @@ impl Triangle32 {
     }
 }
 
+// ------------------------------------------- fast path, one ray against 8 triangles
+//
+// The same steps again, with the eight lanes holding eight triangles and the ray
+// splatted. The ray's permutation is one choice for all lanes, so it only picks which
+// coordinate arrays to read. Every operation is the scalar kernel's, in its order,
+// without FMA, so each lane returns bit for bit what [`Triangle32::intersect_1`] returns
+// for its triangle (`tests/wide_bvh.rs` checks this). The scalar kernel has no
+// double-precision fallback for zero edge functions (zero counts as inside), so
+// neither has this one.
+
+/// One ray prepared for [`Triangle8`]: origin in the permuted frame and the shear, splatted.
+#[derive(Clone, Copy, Debug)]
+pub struct TriRay8 {
+    /// Origin components (o[kx], o[ky], o[kz]).
+    pub origin: [f32x8; 3],
+    /// −d[kx]/d[kz], −d[ky]/d[kz], 1/d[kz].
+    pub shear: [f32x8; 3],
+    /// (kx, ky, kz): the axes read as x, y, z.
+    pub axes: [usize; 3],
+}
+
+impl TriRay8 {
+    #[inline]
+    pub fn new(r: &Ray1) -> TriRay8 {
+        let axes = [(r.kz + 1) % 3, (r.kz + 2) % 3, r.kz];
+        TriRay8 {
+            origin: axes.map(|k| f32x8::splat(r.origin[k])),
+            shear: [r.shear.x, r.shear.y, r.shear.z].map(f32x8::splat),
+            axes,
+        }
+    }
+}
+
+/// Eight triangles as structure of arrays, `v[vertex][axis]`, one triangle per lane.
+/// 288 B. Unused lanes repeat one point three times: their edge functions are exactly
+/// 0 (x·y − y·x), so det = 0 and they are never hit (or NaN on overflow: no hit either).
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle8 {
+    pub v: [[f32x8; 3]; 3],
+}
+
+impl Triangle8 {
+    /// Packs up to 8 triangles; lane i holds `tris[i]`.
+    pub fn new(tris: &[Triangle32]) -> Triangle8 {
+        assert!(!tris.is_empty() && tris.len() <= 8, "1 to 8 triangles");
+        let pad = tris[0].v[0];
+        let vertex = |lane: usize, vi: usize| tris.get(lane).map_or(pad, |t| t.v[vi]);
+        Triangle8 {
+            v: std::array::from_fn(|vi| {
+                std::array::from_fn(|axis| {
+                    f32x8::new(std::array::from_fn(|lane| vertex(lane, vi)[axis]))
+                })
+            }),
+        }
+    }
+
+    /// Lane i of `active`: [`Triangle32::intersect_1`] of triangle i (hit in (0, t_max],
+    /// t, b1, b2).
+    #[inline(always)]
+    pub fn intersect_1x8(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        let zero = f32x8::ZERO;
+        // translate the vertices to the ray origin
+        // permute so that the largest direction component is z
+        let [kx, ky, kz] = r.axes;
+        let p = self.v.map(|q| {
+            [
+                q[kx] - r.origin[0],
+                q[ky] - r.origin[1],
+                q[kz] - r.origin[2],
+            ]
+        });
+        // shear so the ray runs along +z
+        let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
+        // edge functions
+        let e0 = p[1][0] * p[2][1] - p[1][1] * p[2][0];
+        let e1 = p[2][0] * p[0][1] - p[2][1] * p[0][0];
+        let e2 = p[0][0] * p[1][1] - p[0][1] * p[1][0];
+        // reject when the edge functions disagree in sign (zero counts as inside)
+        let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
+        let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
+        let det = e0 + e1 + e2;
+        let valid = active.and_not(any_neg & any_pos).and_not(det.eq8(zero));
+        if valid.none() {
+            return (valid, zero, zero, zero);
+        }
+        // scaled distance, compared without dividing (bound 4 ulp above t_max, see
+        // `Triangle32::intersect_1`)
+        let z = p.map(|q| q[2] * r.shear[2]);
+        let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
+        let sign = det & f32x8::splat(-0.0);
+        let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
+        let adet = det.abs();
+        let t_lim = f32x8::splat(t_max * (1.0 + 4.0 * f32::EPSILON));
+        let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
+        if valid.none() {
+            return (valid, zero, zero, zero);
+        }
+        let inv_det = f32x8::splat(1.0) / det;
+        let t = t_scaled * inv_det;
+        // t must be positive beyond its own rounding error (pbrt-v4's bound)
+        let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
+        let max_z = amax(z[0], z[1], z[2]);
+        let max_x = amax(p[0][0], p[1][0], p[2][0]);
+        let max_y = amax(p[0][1], p[1][1], p[2][1]);
+        let g = |n| f32x8::splat(gamma32(n));
+        let delta_z = g(3) * max_z;
+        let delta_x = g(5) * (max_x + max_z);
+        let delta_y = g(5) * (max_y + max_z);
+        let delta_e =
+            f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        let max_e = amax(e0, e1, e2);
+        let delta_t = f32x8::splat(3.0)
+            * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+            * inv_det.abs();
+        let valid = valid & t.gt(delta_t) & t.le(f32x8::splat(t_max));
+        (valid, t, e1 * inv_det, e2 * inv_det)
+    }
+
+    /// Lanes of `active` whose triangle meets the ray with 0 < t < t_max.
+    #[inline(always)]
+    pub fn occluded_1x8(&self, r: &TriRay8, active: Mask8, t_max: f32) -> Mask8 {
+        let (m, t, _, _) = self.intersect_1x8(r, active, t_max);
+        m & t.lt(f32x8::splat(t_max))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,678 @@
+//! An 8-wide BVH collapsed from the binary SAH tree, for single rays.
+//!
+//! [`WideBvh::collapse`] turns the binary node array into nodes of up to eight children
+//! (greedy: a node's two children are taken, then the interior child with the largest
+//! surface area is replaced by its two children until there are eight or only leaves
+//! left; O(n), every binary node is opened at most once). A binary subtree of at most
+//! [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, becomes one
+//! leaf: full blocks of [`Triangle8`] for triangles instead of several nearly empty ones.
+//! The slot boxes are the binary nodes' boxes, bit for bit, so a slot's slab test gives
+//! the same answer the binary traversal gets for that subtree.
+//!
+//! One ray is tested against the eight boxes of a node at once ([`WideNode`], SoA, f32x8),
+//! the hit children are visited nearest first (closest hit) and a leaf's triangles eight
+//! at a time with the watertight 1×8 kernel ([`Triangle8::intersect_1x8`], equal lane by
+//! lane to [`Triangle32::intersect_1`]). Spheres and clipped quadrics in leaves go
+//! through [`PrimSet::intersect_1`]/[`PrimSet::occluded_1`] one by one.
+//!
+//! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
+//! non-finite origin or direction skips the tree), an exact tie in t goes to the lower
+//! object index, the unbounded quadrics and the floor after the tree. Step counters:
+//! `boxes` counts **wide node tests** (one per node visited, each of up to 8 boxes),
+//! `prims` the primitives of the leaves reached (real triangles, not padding lanes),
+//! `quadrics` the quadric tests.
+//!
+//! [`Triangle32::intersect_1`]: crate::geometry::triangle::Triangle32::intersect_1
+
+use std::mem::MaybeUninit;
+
+use wide::f32x8;
+
+use super::{Bvh, STACK_SIZE, Steps};
+use crate::geometry::triangle::{TriRay8, Triangle8};
+use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code};
+use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
+
+/// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
+// Tried (bench-trace torus100k, 1 thread, back to back, mode=1 incoherent / primary,
+// before the blocks had leaf boxes and before prefetching):
+// 8: 2.07 / 5.81 Mrays/s; 4: 1.93 / 5.62; 1 (binary leaves only): 1.37 / 5.76.
+// With leaf boxes, prefetching and huge pages, four interleaved pairs at load ~2.4,
+// mode=1 alone: 16: incoherent 2.86, 2.97, 2.77, 2.73 / primary 6.05, 6.49, 6.62,
+// 6.70; 8: 2.56, 2.33, 3.09, 2.28 / 6.48, 6.24, 6.21, 5.32. Whole bench-trace, three
+// interleaved pairs at load ~1.5: 16: incoherent 3.45, 3.55, 3.32 / primary 6.74, 6.70,
+// 6.61; 8: 3.09, 3.48, 3.48 / 6.96, 7.03, 7.00. So 16 trades ~5 % of coherent single
+// rays for ~3 % of incoherent ones (the bar); revisit with a quieter machine.
+pub const MERGE_MAX: u32 = 16;
+
+/// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
+const INTERIOR: u32 = 0;
+const COUNT_MASK: u32 = (1 << 28) - 1;
+
+/// A node of the 8-wide tree. 256 B = four cache lines, 64-byte aligned.
+///
+/// `bounds[2a]` / `bounds[2a + 1]`: the low / high bounds of the eight child boxes on
+/// axis a (x, y, z), lane i = slot i. Empty slots have lo = +∞, hi = −∞: with the near
+/// plane picked by the sign of the direction (never min/max), their entry is +∞ and
+/// their exit −∞, so they never hit. Slots are filled from 0 without gaps.
+/// `meta[i]` == 0: interior child, `child[i]` is the index of its [`WideNode`];
+/// otherwise a leaf: bits 0..28 the primitive count, bits 28..31 the [`PrimKind`];
+/// `child[i]` is the first [`TriBlock`] for triangles, the first primitive of its kind
+/// in the [`PrimSet`] otherwise.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct WideNode {
+    pub bounds: [f32x8; 6],
+    pub child: [u32; 8],
+    pub meta: [u32; 8],
+}
+
+const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+/// Up to eight triangles of one leaf, SoA, with the index of the first in
+/// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
+/// that never hits), and per lane the box of the binary leaf the triangle came from
+/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines.
+///
+/// A lane's hit counts only when the ray also passes its binary leaf's box: then a
+/// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
+/// monotone under box containment, so passing the leaf's box implies passing every
+/// ancestor's). Without it, the larger merged box let the wide walk find hits the
+/// binary and packet walks miss (a ray lying in a box face with a ±0 direction
+/// component, see `math::packet`), so packet lanes and single rays differed.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct TriBlock {
+    pub tri: Triangle8,
+    pub bounds: [f32x8; 6],
+    pub first: u32,
+    pub count: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
+
+/// The 8-wide tree over the same primitives as the binary one (it owns copies of the
+/// triangles in blocks; the primitive codes it reports index `PrimSet`).
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    pub blocks: Vec<TriBlock>,
+}
+
+/// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
+/// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
+const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
+
+/// Subtree summary of a binary node: one kind, contiguous primitives `first..first+count`.
+#[derive(Clone, Copy)]
+struct Span {
+    kind: u32,
+    first: u32,
+    count: u32,
+}
+
+impl WideBvh {
+    /// Collapses the binary tree `nodes` over `prims` (in leaf order) into the wide tree.
+    pub fn collapse(nodes: &[super::BvhNode], prims: &PrimSet) -> WideBvh {
+        let mut w = WideBvh::default();
+        if nodes.is_empty() {
+            return w;
+        }
+        // bottom-up: which subtrees are one contiguous run of one kind (children follow
+        // their parent in the array, so a reverse sweep sees children first)
+        let mut span: Vec<Option<Span>> = vec![None; nodes.len()];
+        for i in (0..nodes.len()).rev() {
+            let n = &nodes[i];
+            span[i] = if n.is_leaf() {
+                Some(Span {
+                    kind: n.kind() as u32,
+                    first: n.first,
+                    count: n.count(),
+                })
+            } else {
+                let l = n.first as usize;
+                match (span[l], span[l + 1]) {
+                    (Some(a), Some(b)) if a.kind == b.kind => {
+                        let (lo, hi) = if a.first <= b.first { (a, b) } else { (b, a) };
+                        (lo.first + lo.count == hi.first).then_some(Span {
+                            kind: a.kind,
+                            first: lo.first,
+                            count: a.count + b.count,
+                        })
+                    }
+                    _ => None,
+                }
+            };
+        }
+        // a binary node becomes a leaf slot when it is a leaf or a small enough run
+        let as_leaf = |i: usize| -> Option<Span> {
+            let s = span[i]?;
+            (nodes[i].is_leaf() || s.count <= MERGE_MAX).then_some(s)
+        };
+        // each triangle's binary leaf box
+        let mut leaf_box = vec![super::Aabb::EMPTY; prims.triangles.len()];
+        for n in nodes {
+            if n.is_leaf() && n.kind() == PrimKind::Triangle {
+                let (f, c) = (n.first as usize, n.count() as usize);
+                leaf_box[f..f + c].fill(n.bounds());
+            }
+        }
+        w.nodes.reserve(nodes.len() / 4 + 1);
+        w.nodes.push(Self::empty_node());
+        // (wide node to fill, its binary children)
+        let mut work: Vec<(usize, Vec<usize>)> = Vec::new();
+        let root_children = if as_leaf(0).is_some() {
+            vec![0]
+        } else {
+            vec![nodes[0].first as usize, nodes[0].first as usize + 1]
+        };
+        work.push((0, root_children));
+        while let Some((wi, mut kids)) = work.pop() {
+            // open the interior child with the largest surface area while there is room
+            while kids.len() < 8 {
+                let best = kids
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &k)| as_leaf(k).is_none())
+                    .max_by(|a, b| {
+                        let (aa, ab) = (nodes[*a.1].bounds().area(), nodes[*b.1].bounds().area());
+                        aa.total_cmp(&ab)
+                    })
+                    .map(|(slot, _)| slot);
+                let Some(slot) = best else { break };
+                let b = kids[slot];
+                let l = nodes[b].first as usize;
+                kids[slot] = l;
+                kids.push(l + 1);
+            }
+            let mut node = Self::empty_node();
+            let mut lanes = [[0.0f32; 8]; 6];
+            for (s, lane) in lanes.iter_mut().enumerate() {
+                *lane = node.bounds[s].to_array();
+            }
+            for (slot, &k) in kids.iter().enumerate() {
+                let b = nodes[k].bounds();
+                for a in 0..3 {
+                    lanes[2 * a][slot] = b.lo[a];
+                    lanes[2 * a + 1][slot] = b.hi[a];
+                }
+                match as_leaf(k) {
+                    Some(s) => {
+                        node.meta[slot] = s.count | s.kind << 28;
+                        node.child[slot] = if s.kind == PrimKind::Triangle as u32 {
+                            w.push_blocks(prims, &leaf_box, s.first, s.count)
+                        } else {
+                            s.first
+                        };
+                    }
+                    None => {
+                        let ci = w.nodes.len();
+                        w.nodes.push(Self::empty_node());
+                        node.meta[slot] = INTERIOR;
+                        node.child[slot] = ci as u32;
+                        let l = nodes[k].first as usize;
+                        work.push((ci, vec![l, l + 1]));
+                    }
+                }
+            }
+            node.bounds = lanes.map(f32x8::new);
+            w.nodes[wi] = node;
+        }
+        w.nodes = huge_pages(w.nodes);
+        w.blocks = huge_pages(w.blocks);
+        w
+    }
+
+    fn empty_node() -> WideNode {
+        let lo = f32x8::splat(f32::INFINITY);
+        let hi = f32x8::splat(f32::NEG_INFINITY);
+        WideNode {
+            bounds: [lo, hi, lo, hi, lo, hi],
+            child: [0; 8],
+            meta: [INTERIOR; 8],
+        }
+    }
+
+    /// Packs triangles `first..first + count` into blocks of 8; returns the first block.
+    fn push_blocks(
+        &mut self,
+        prims: &PrimSet,
+        leaf_box: &[super::Aabb],
+        first: u32,
+        count: u32,
+    ) -> u32 {
+        let b0 = self.blocks.len() as u32;
+        let range = first as usize..(first + count) as usize;
+        let tris = &prims.triangles[range.clone()];
+        for (k, (chunk, boxes)) in tris.chunks(8).zip(leaf_box[range].chunks(8)).enumerate() {
+            let mut lanes = [[f32::INFINITY; 8], [f32::NEG_INFINITY; 8]].repeat(3);
+            for (l, b) in boxes.iter().enumerate() {
+                for a in 0..3 {
+                    lanes[2 * a][l] = b.lo[a];
+                    lanes[2 * a + 1][l] = b.hi[a];
+                }
+            }
+            self.blocks.push(TriBlock {
+                tri: Triangle8::new(chunk),
+                bounds: std::array::from_fn(|i| f32x8::new(lanes[i])),
+                first: first + 8 * k as u32,
+                count: chunk.len() as u32,
+            });
+        }
+        b0
+    }
+
+    /// Asks for the whole of a child's node or first triangle block to be brought into
+    /// the cache at once: the slab test reads the box lines, then the child or triangle
+    /// lines, each a miss of its own on incoherent rays without this.
+    #[inline(always)]
+    fn prefetch(&self, child: u32, meta: u32) {
+        if meta == INTERIOR {
+            if let Some(n) = self.nodes.get(child as usize) {
+                prefetch_lines(n);
+            }
+        } else if meta >> 28 == PrimKind::Triangle as u32
+            && let Some(b) = self.blocks.get(child as usize)
+        {
+            prefetch_lines(&b.tri);
+        }
+    }
+
+    /// Depth of the deepest leaf slot (root node = 1); 0 when empty.
+    pub fn depth(&self) -> usize {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let mut best = 0;
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((i, d)) = stack.pop() {
+            best = best.max(d);
+            let n = &self.nodes[i];
+            for s in 0..8 {
+                let valid = n.bounds[0].to_array()[s] <= n.bounds[1].to_array()[s];
+                if valid && n.meta[s] == INTERIOR {
+                    stack.push((n.child[s] as usize, d + 1));
+                }
+            }
+        }
+        best
+    }
+}
+
+/// One ray prepared for the wide walk: the ray, its slab-test and its triangle-test forms.
+struct WideRay<'a> {
+    r: &'a Ray1,
+    boxes: BoxRay,
+    tris: TriRay8,
+}
+
+impl WideRay<'_> {
+    #[inline]
+    fn new(r: &Ray1) -> WideRay<'_> {
+        WideRay {
+            r,
+            boxes: BoxRay::new(r),
+            tris: TriRay8::new(r),
+        }
+    }
+}
+
+/// One ray prepared for the slab tests of a [`WideNode`].
+struct BoxRay {
+    origin: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    /// Index in `WideNode::bounds` of the near and far plane per axis (by the sign of
+    /// 1/d: lo when positive).
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl BoxRay {
+    #[inline]
+    fn new(r: &Ray1) -> BoxRay {
+        let neg = [0, 1, 2].map(|a| (r.inv_dir[a] < 0.0) as usize);
+        BoxRay {
+            origin: [0, 1, 2].map(|a| f32x8::splat(r.origin[a])),
+            inv_dir: [0, 1, 2].map(|a| f32x8::splat(r.inv_dir[a])),
+            near: [0, 1, 2].map(|a| 2 * a + neg[a]),
+            far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
+        }
+    }
+
+    /// The slab test of `BvhNode::intersect_1` on the eight slots: bit i of the mask is
+    /// set when slot i is met with 0 <= t and t <= t_max (far bound widened by
+    /// 1 + 2γ(3)); the entry distances. With finite origins and 1/d (the slab rule)
+    /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
+    /// near plane by the sign of 1/d gives the same value as the binary test's min.
+    #[inline]
+    fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (Mask8, f32x8) {
+        let t = |plane: usize, a: usize| (bounds[plane] - self.origin[a]) * self.inv_dir[a];
+        let near = t(self.near[0], 0)
+            .fast_max(t(self.near[1], 1))
+            .fast_max(t(self.near[2], 2).fast_max(f32x8::ZERO));
+        let far = t(self.far[0], 0)
+            .fast_min(t(self.far[1], 1))
+            .fast_min(t(self.far[2], 2).fast_min(f32x8::splat(t_max)))
+            * f32x8::splat(FAR_WIDEN);
+        (near.le(far), near)
+    }
+}
+
+/// `v` moved into a buffer whose 2 MiB-aligned part Linux is asked to back with
+/// transparent huge pages (`madvise(MADV_HUGEPAGE)`, before the pages are touched), so
+/// incoherent rays walking megabytes of nodes and blocks miss the TLB less. Embree does
+/// the same by default on Linux. Small arrays, other systems: `v` unchanged.
+// Measured: bench-trace torus100k incoherent mode=1 alone, 1 thread, interleaved at
+// load ~7: 1.12, 1.05, 1.30 Mrays/s with, 0.91, 0.99, 0.89 without.
+fn huge_pages<T: Copy>(v: Vec<T>) -> Vec<T> {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        const MADV_HUGEPAGE: i32 = 14;
+        unsafe extern "C" {
+            fn madvise(addr: *mut std::ffi::c_void, len: usize, advice: i32) -> i32;
+        }
+        let size = std::mem::size_of::<T>().max(1);
+        if v.len() * size >= 2 * HUGE {
+            let mut out: Vec<T> = Vec::with_capacity(v.len() + HUGE / size);
+            let start = out.as_mut_ptr() as usize;
+            let end = start + out.capacity() * size;
+            let lo = start.next_multiple_of(HUGE);
+            let hi = end / HUGE * HUGE;
+            if hi > lo {
+                // SAFETY: [lo, hi) lies inside `out`'s allocation; MADV_HUGEPAGE only
+                // advises the kernel about it and changes no contents. A failure (THP
+                // off) leaves ordinary pages.
+                unsafe { madvise(lo as *mut std::ffi::c_void, hi - lo, MADV_HUGEPAGE) };
+            }
+            out.extend_from_slice(&v);
+            return out;
+        }
+    }
+    v
+}
+
+/// Prefetches every cache line of `*p` (no-op off x86-64).
+#[inline(always)]
+fn prefetch_lines<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let base = (p as *const T).cast::<i8>();
+        for off in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: SSE is part of x86-64; a prefetch never faults or writes.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(off)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
+/// Whether the ray enters the tree: a NaN or infinite origin or direction never hits
+/// a bounded primitive (their kernels give NaN), and would make the slab test NaN,
+/// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included.
+#[inline]
+fn finite(r: &Ray1) -> bool {
+    r.origin.is_finite() && r.inv_dir.is_finite()
+}
+
+/// A stack entry: slot `child` and `meta` packed (meta in the high half).
+#[inline]
+fn pack(child: u32, meta: u32) -> u64 {
+    child as u64 | (meta as u64) << 32
+}
+
+/// Records a hit as `PrimSet::record_1` does: nearer wins, an exact tie goes to the
+/// lower object index (the earlier candidate on equal objects).
+#[inline]
+fn record(prims: &PrimSet, hit: &mut Hit1, t: f32, u: f32, v: f32, code: i32) {
+    if t < hit.t || (t == hit.t && hit.is_hit() && prims.object(code) < prims.object(hit.prim)) {
+        *hit = Hit1 {
+            t,
+            prim: code,
+            u,
+            v,
+        };
+    }
+}
+
+impl Bvh {
+    /// Nearest hit below `hit.t`, recorded in `hit` (the 8-wide tree, then the
+    /// unbounded quadrics and the floor).
+    pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        let w = &self.wide;
+        if !w.nodes.is_empty() && finite(r) {
+            let wr = WideRay::new(r);
+            let br = &wr.boxes;
+            // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
+            // profile (perf, memset) and 30 % of this walk's own time. Entries below
+            // `sp` are always written before they are read.
+            let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
+            let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
+            let mut sp = 0usize;
+            let mut cur = pack(0, INTERIOR);
+            'walk: loop {
+                let (child, meta) = (cur as u32, (cur >> 32) as u32);
+                if meta == INTERIOR {
+                    let node = &w.nodes[child as usize];
+                    steps.boxes += 1;
+                    let (m, near) = br.test(&node.bounds, hit.t);
+                    let mut bits = m.bits();
+                    let mut b = bits;
+                    while b != 0 {
+                        let s = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        w.prefetch(node.child[s], node.meta[s]);
+                    }
+                    if bits != 0 {
+                        let first = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if bits == 0 {
+                            cur = pack(node.child[first], node.meta[first]);
+                            continue 'walk;
+                        }
+                        // two or more: sort by entry distance (keys: the distance's bits,
+                        // >= 0 so ordered as integers, then the slot), push all but the
+                        // nearest, farthest first
+                        let nd = near.to_array();
+                        let key =
+                            |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+                        let mut keys = [0u64; 8];
+                        keys[0] = key(first);
+                        let mut n = 1;
+                        while bits != 0 {
+                            let s = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            // insertion, descending
+                            let k = key(s);
+                            let mut j = n;
+                            while j > 0 && keys[j - 1] < k {
+                                keys[j] = keys[j - 1];
+                                j -= 1;
+                            }
+                            keys[j] = k;
+                            n += 1;
+                        }
+                        for &k in &keys[..n - 1] {
+                            let s = (k & 0xff) as usize;
+                            refs[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
+                            dists[sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
+                            sp += 1;
+                        }
+                        let s = (keys[n - 1] & 0xff) as usize;
+                        cur = pack(node.child[s], node.meta[s]);
+                        continue 'walk;
+                    }
+                } else {
+                    self.leaf_intersect_1(child, meta, &wr, hit, steps);
+                }
+                // pop the next subtree still in front of the nearest hit
+                loop {
+                    if sp == 0 {
+                        break 'walk;
+                    }
+                    sp -= 1;
+                    // SAFETY: entries 0..sp (before the decrement) were written above.
+                    let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
+                    if d <= hit.t {
+                        cur = rf;
+                        break;
+                    }
+                }
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
+        }
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
+        }
+    }
+
+    #[inline]
+    fn leaf_intersect_1(
+        &self,
+        child: u32,
+        meta: u32,
+        wr: &WideRay,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
+        let count = meta & COUNT_MASK;
+        let kind = PrimKind::from_u32(meta >> 28);
+        steps.prims += count as u64;
+        if kind != PrimKind::Triangle {
+            if kind == PrimKind::Quadric {
+                steps.quadrics += count as u64;
+            }
+            self.prims
+                .intersect_1(kind, child as usize, count as usize, wr.r, hit);
+            return;
+        }
+        let nb = count.div_ceil(8) as usize;
+        for b in &self.wide.blocks[child as usize..child as usize + nb] {
+            // the leaf boxes only for lanes that hit: three lines fewer to fetch per block
+            // Tried: leaf boxes first, as the kernel's active mask: their load was the walk's
+            // hottest instruction (perf annotate: 15.6 % of its samples); bench-trace
+            // torus100k incoherent mode=1, 1 thread, interleaved runs at load 7: 2.70,
+            // 2.78, 2.75 Mrays/s against 2.76, 2.87, 2.78 for this order.
+            let (m, t, u, v) = b.tri.intersect_1x8(&wr.tris, Mask8::ALL, hit.t);
+            if m.none() {
+                continue;
+            }
+            let mut bits = (m & wr.boxes.test(&b.bounds, hit.t).0).bits();
+            if bits == 0 {
+                continue;
+            }
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            if bits & (bits - 1) != 0 {
+                // several lanes: keep those at the smallest t, in lane (= index) order
+                let tmin = (0..8)
+                    .filter(|&l| bits >> l & 1 == 1)
+                    .fold(f32::INFINITY, |a, l| a.min(t[l]));
+                for (l, &tl) in t.iter().enumerate() {
+                    if tl != tmin {
+                        bits &= !(1 << l);
+                    }
+                }
+            }
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let code = prim_code(PrimKind::Triangle, b.first as usize + l);
+                record(&self.prims, hit, t[l], u[l], v[l], code);
+            }
+        }
+    }
+
+    /// Whether anything lies on the ray with 0 < t < t_max (the floor, the unbounded
+    /// quadrics, then the 8-wide tree, unordered; stops at the first blocker).
+    pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
+                return true;
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            if self
+                .prims
+                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
+            {
+                return true;
+            }
+        }
+        let w = &self.wide;
+        if w.nodes.is_empty() || !finite(r) {
+            return false;
+        }
+        let wr = WideRay::new(r);
+        let br = &wr.boxes;
+        // uninitialised for the same reason as in `intersect_1`
+        let mut stack = [MaybeUninit::<u32>::uninit(); WIDE_STACK];
+        stack[0] = MaybeUninit::new(0);
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            // SAFETY: entries 0..sp (before the decrement) were written.
+            let ni = unsafe { stack[sp].assume_init() };
+            let node = &w.nodes[ni as usize];
+            steps.boxes += 1;
+            let mut bits = br.test(&node.bounds, t_max).0.bits();
+            let mut b = bits;
+            while b != 0 {
+                let s = b.trailing_zeros() as usize;
+                b &= b - 1;
+                w.prefetch(node.child[s], node.meta[s]);
+            }
+            while bits != 0 {
+                let s = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let meta = node.meta[s];
+                if meta == INTERIOR {
+                    stack[sp] = MaybeUninit::new(node.child[s]);
+                    sp += 1;
+                } else if self.leaf_occluded_1(node.child[s], meta, &wr, t_max, steps) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    #[inline]
+    fn leaf_occluded_1(
+        &self,
+        child: u32,
+        meta: u32,
+        wr: &WideRay,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        let count = meta & COUNT_MASK;
+        let kind = PrimKind::from_u32(meta >> 28);
+        steps.prims += count as u64;
+        if kind != PrimKind::Triangle {
+            if kind == PrimKind::Quadric {
+                steps.quadrics += count as u64;
+            }
+            return self
+                .prims
+                .occluded_1(kind, child as usize, count as usize, wr.r, t_max);
+        }
+        let nb = count.div_ceil(8) as usize;
+        self.wide.blocks[child as usize..child as usize + nb]
+            .iter()
+            .any(|b| {
+                let m = b.tri.occluded_1x8(&wr.tris, Mask8::ALL, t_max);
+                m.any() && (m & wr.boxes.test(&b.bounds, t_max).0).any()
+            })
+    }
+}

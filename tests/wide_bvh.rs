@@ -1,0 +1,451 @@
+//! The 8-wide single-ray path (`Bvh::intersect_1`/`occluded_1`, `bvh/wide.rs`) against
+//! the binary single-ray walk (`intersect_1_binary`/`occluded_1_binary`), and the 1×8
+//! triangle kernel against the 1×1 kernel.
+//!
+//! Tolerances: both walks run the same per-primitive kernels (the 1×8 triangle kernel
+//! equals the 1×1 kernel bit for bit, checked below), so when both report the same
+//! primitive, t, u and v must be **bit-identical** (tolerance 0). They may report
+//! different primitives only on a legitimate tie: equal t (bitwise) and the same scene
+//! object (e.g. a ray through the shared edge of two triangles of one mesh, where the
+//! contract only orders objects, not primitives). Hit/miss must always agree. Any-hit
+//! must agree with closest-hit: `occluded_1(r, t_max)` iff `intersect_1` below t_max
+//! finds something.
+
+mod common;
+
+use common::{Rng, generated_scene};
+use glam::{DVec3, Vec3};
+use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
+use octaray::bvh::{Bvh, Steps};
+use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
+use octaray::geometry::{Hit1, PrimKind, PrimSet, split_code};
+use octaray::math::packet::{Mask8, Ray1};
+use octaray::scene::{Object, Quadric, Scene, Shape};
+
+#[derive(Debug, Default)]
+struct Tally {
+    rays: usize,
+    hits: usize,
+    /// Equal t, same object, different primitive.
+    ties: usize,
+    /// Different answers at a triangle edge or vertex.
+    edge: usize,
+}
+
+/// A triangle hit within 1e-4 (barycentric) of an edge.
+fn at_edge(h: &Hit1) -> bool {
+    h.is_hit()
+        && split_code(h.prim).0 == PrimKind::Triangle
+        && h.u.abs().min(h.v.abs()).min((1.0 - h.u - h.v).abs()) <= 1e-4
+}
+
+fn closest(bvh: &Bvh, r: &Ray1, t_max: f32, wide: bool, steps: &mut Steps) -> Hit1 {
+    let mut h = Hit1::new(t_max);
+    if wide {
+        bvh.intersect_1(r, &mut h, steps);
+    } else {
+        bvh.intersect_1_binary(r, &mut h, steps);
+    }
+    h
+}
+
+/// Wide vs binary on every ray of `rays`, closest hit and any hit at several t_max.
+fn compare(name: &str, bvh: &Bvh, rays: &[Ray1], rng: &mut Rng) -> (Tally, Steps, Steps) {
+    let mut tally = Tally::default();
+    let (mut sw, mut sb) = (Steps::default(), Steps::default());
+    for (i, r) in rays.iter().enumerate() {
+        tally.rays += 1;
+        let hw = closest(bvh, r, f32::INFINITY, true, &mut sw);
+        let hb = closest(bvh, r, f32::INFINITY, false, &mut sb);
+        assert_eq!(
+            hw.is_hit(),
+            hb.is_hit(),
+            "{name}: ray {i} {r:?}: wide {hw:?} vs binary {hb:?}"
+        );
+        let mut edge_ray = false;
+        if hw.prim == hb.prim {
+            // same primitive (or both miss): bit-identical
+            assert_eq!(
+                (hw.t.to_bits(), hw.u.to_bits(), hw.v.to_bits()),
+                (hb.t.to_bits(), hb.u.to_bits(), hb.v.to_bits()),
+                "{name}: ray {i} {r:?}: wide {hw:?} vs binary {hb:?}"
+            );
+        } else if hw.is_hit()
+            && hb.is_hit()
+            && hw.t == hb.t
+            && bvh.prims.object(hw.prim) == bvh.prims.object(hb.prim)
+        {
+            // a tie between primitives of one object may go either way
+            tally.ties += 1;
+        } else {
+            // otherwise only at a triangle edge or vertex, where a hit can fall an ulp
+            // outside its leaf's box and one walk (whose box there is the larger, merged
+            // one) finds it while the other does not
+            assert!(
+                at_edge(&hw) || at_edge(&hb),
+                "{name}: ray {i} {r:?}: wide {hw:?} vs binary {hb:?}, not at an edge"
+            );
+            tally.edge += 1;
+            edge_ray = true;
+        }
+        tally.hits += hw.is_hit() as usize;
+        // any hit: at the hit itself (nothing nearer), just past it, and at random t_max
+        let mut t_maxes = vec![rng.range(0.0, 3.0) as f32, f32::INFINITY];
+        if hb.is_hit() {
+            t_maxes.extend([hb.t, hb.t.next_up(), hb.t * rng.range(0.5, 2.0) as f32]);
+        }
+        for t_max in t_maxes {
+            let ow = bvh.occluded_1(r, t_max, &mut sw);
+            let ob = bvh.occluded_1_binary(r, t_max, &mut sb);
+            let cw = closest(bvh, r, t_max, true, &mut sw).is_hit();
+            assert!(
+                ow == ob || edge_ray,
+                "{name}: ray {i} {r:?}: occluded at {t_max}"
+            );
+            // (closest hit culls a box entered beyond the current hit; at a vertex a hit
+            // can lie an ulp outside its box, so there the unculled any-hit walk may see
+            // it and the closest-hit walk not; the binary walks do the same)
+            if ow != cw {
+                assert!(
+                    at_edge(&hw) || at_edge(&hb),
+                    "{name}: ray {i} {r:?}: any hit and closest hit disagree at {t_max}"
+                );
+                if !edge_ray {
+                    tally.edge += 1;
+                    edge_ray = true;
+                }
+            }
+        }
+    }
+    println!("{name}: {tally:?}, wide {sw:?}, binary {sb:?}");
+    assert!(
+        tally.edge * 200 <= tally.rays,
+        "{name}: too many edge differences: {tally:?}"
+    );
+    (tally, sw, sb)
+}
+
+fn rays_of(set: &octaray::bvh::bench::RaySet) -> Vec<Ray1> {
+    set.origin
+        .iter()
+        .zip(&set.dir)
+        .map(|(&o, &d)| Ray1::new(o, d))
+        .collect()
+}
+
+/// Rays aimed exactly at vertices and at points on (or within an ulp of) edges of
+/// random triangles, from random origins.
+fn edge_rays(tris: &[Triangle32], n: usize, lo: Vec3, hi: Vec3, rng: &mut Rng) -> Vec<Ray1> {
+    (0..n)
+        .map(|k| {
+            let t = &tris[rng.next_u64() as usize % tris.len()];
+            let (a, b) = (t.v[k % 3], t.v[(k + 1) % 3]);
+            let target = match k % 3 {
+                0 => a,
+                1 => (a + b) * 0.5,
+                _ => a + (b - a) * rng.f64() as f32,
+            };
+            let o = Vec3::new(
+                rng.range(lo.x as f64, hi.x as f64) as f32,
+                rng.range(lo.y as f64, hi.y as f64) as f32,
+                rng.range(lo.z as f64, hi.z as f64) as f32,
+            );
+            Ray1::new(o, (target - o).normalize())
+        })
+        .collect()
+}
+
+/// Axis-aligned and in-plane directions with every sign of zero, from a grid of origins.
+fn signed_zero_rays(lo: Vec3, hi: Vec3, steps: usize) -> Vec<Ray1> {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let dirs = [
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(-0.0, -1.0, -0.0),
+        Vec3::new(0.0, 1.0, -0.0),
+        Vec3::new(1.0, 0.0, -0.0),
+        Vec3::new(-1.0, -0.0, 0.0),
+        Vec3::new(0.0, -0.0, 1.0),
+        Vec3::new(-0.0, 0.0, -1.0),
+        Vec3::new(s, -0.0, -s),
+        Vec3::new(-s, s, 0.0),
+        Vec3::new(-0.0, -s, s),
+    ];
+    let mut rays = Vec::new();
+    for i in 0..steps {
+        for j in 0..steps {
+            let f = |k: usize| (k as f32 + 0.5) / steps as f32;
+            let o = lo + (hi - lo) * Vec3::new(f(i), f(j), f((i * 7 + j * 3) % steps));
+            for d in dirs {
+                rays.push(Ray1::new(o, d));
+            }
+        }
+    }
+    rays
+}
+
+fn torus_bvh() -> Bvh {
+    Bvh::build(PrimSet::from_triangles(torus(96, 48)))
+}
+
+#[test]
+fn wide_equals_binary_on_a_torus_incoherent() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(11);
+    let rays = rays_of(&incoherent_rays(20_000, 3));
+    let (t, sw, sb) = compare("torus incoherent", &bvh, &rays, &mut rng);
+    assert!(t.hits > t.rays / 3, "{t:?}: too few hits to test anything");
+    assert!(sw.boxes > 0 && sw.prims > 0 && sb.boxes > 0);
+    // a wide node test stands for up to 8 box tests: far fewer than the binary walk's
+    assert!(sw.boxes < sb.boxes, "wide {sw:?} vs binary {sb:?}");
+}
+
+#[test]
+fn wide_equals_binary_on_a_torus_coherent() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(12);
+    let rays = rays_of(&primary_rays(128, 128));
+    let (t, _, _) = compare("torus primary", &bvh, &rays, &mut rng);
+    assert!(t.hits > t.rays / 3, "{t:?}");
+}
+
+#[test]
+fn wide_equals_binary_through_shared_edges_and_vertices() {
+    let tris = torus(96, 48);
+    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let mut rng = Rng(13);
+    let rays = edge_rays(
+        &tris,
+        20_000,
+        Vec3::new(-2.0, -1.5, -2.0),
+        Vec3::new(2.0, 1.5, 2.0),
+        &mut rng,
+    );
+    let (t, _, _) = compare("torus edges", &bvh, &rays, &mut rng);
+    // rays aimed at the surface from outside or inside hit it (watertight)
+    assert!(t.hits * 10 >= t.rays * 9, "{t:?}");
+}
+
+#[test]
+fn wide_equals_binary_with_signed_zero_directions() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(14);
+    let rays = signed_zero_rays(Vec3::new(-1.6, -0.5, -1.6), Vec3::new(1.6, 0.5, 1.6), 40);
+    let (t, _, _) = compare("torus signed zeros", &bvh, &rays, &mut rng);
+    assert!(t.hits > t.rays / 4, "{t:?}");
+}
+
+/// The generated mixed scene (spheres, triangles, clipped and unclipped quadrics, the
+/// floor) with its first 40 objects repeated at the end: exact ties in t, which must go
+/// to the lower object index on both walks.
+fn mixed_scene() -> Scene {
+    let mut scene = generated_scene(400, 5);
+    // two unbounded quadrics (tested beside the tree): cylinders along z and x, unclipped
+    let material = scene.objects[0].material;
+    for coef in [
+        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 20.0, -40.0, 0.0, 491.0],
+        [0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 60.0, -20.0, 999.0],
+    ] {
+        scene.objects.push(Object {
+            shape: Shape::Quadric(Quadric {
+                coef,
+                min: DVec3::ZERO,
+                size: DVec3::ZERO,
+            }),
+            material,
+        });
+    }
+    let dup: Vec<Object> = scene.objects[..40].to_vec();
+    scene.objects.extend(dup);
+    scene
+}
+
+#[test]
+fn wide_equals_binary_on_a_mixed_scene() {
+    let scene = mixed_scene();
+    let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
+    let p = &bvh.prims;
+    assert!(
+        !p.spheres.is_empty()
+            && !p.triangles.is_empty()
+            && !p.quadrics.is_empty()
+            && !p.free_quadrics.is_empty()
+            && p.floor.is_some(),
+        "the scene must hold every kind"
+    );
+    let mut rng = Rng(15);
+    let (lo, hi) = (
+        Vec3::new(-100.0, -100.0, -20.0),
+        Vec3::new(80.0, 80.0, 50.0),
+    );
+    let mut rays: Vec<Ray1> = (0..15_000)
+        .map(|_| {
+            let o = Vec3::new(
+                rng.range(lo.x as f64, hi.x as f64) as f32,
+                rng.range(lo.y as f64, hi.y as f64) as f32,
+                rng.range(lo.z as f64, hi.z as f64) as f32,
+            );
+            Ray1::new(o, rng.unit().as_vec3())
+        })
+        .collect();
+    // rays aimed at the bounded primitives' centres (the duplicates give exact ties)
+    for k in 0..5_000 {
+        let kind = PrimKind::BVH_KINDS[k % 3];
+        let n = p.len(kind);
+        let b = p.bounds(kind, rng.next_u64() as usize % n);
+        let o = Vec3::new(
+            rng.range(lo.x as f64, hi.x as f64) as f32,
+            rng.range(lo.y as f64, hi.y as f64) as f32,
+            hi.z,
+        );
+        rays.push(Ray1::new(o, (b.centroid() - o).normalize()));
+    }
+    rays.extend(edge_rays(&p.triangles, 3_000, lo, hi, &mut rng));
+    rays.extend(signed_zero_rays(lo, hi, 20));
+    let (t, sw, _) = compare("mixed", &bvh, &rays, &mut rng);
+    assert!(t.hits > t.rays / 3, "{t:?}");
+    assert!(sw.quadrics > 0, "quadric tests must be counted: {sw:?}");
+    // ties between an object and its duplicate went to the lower index on both walks
+    // (checked per ray above); make sure some happened: the duplicate is never the winner
+    let mut steps = Steps::default();
+    let n_orig = scene.objects.len() as u32 - 40;
+    let mut dup_targets = 0;
+    for r in &rays {
+        let h = closest(&bvh, r, f32::INFINITY, true, &mut steps);
+        if h.is_hit() && split_code(h.prim).0 != PrimKind::Floor {
+            let obj = bvh.prims.object(h.prim);
+            assert!(obj < n_orig, "ray {r:?} hit duplicate object {obj}");
+            dup_targets += (obj < 40) as usize;
+        }
+    }
+    assert!(
+        dup_targets > 100,
+        "only {dup_targets} rays hit duplicated objects"
+    );
+}
+
+#[test]
+fn nan_rays_never_hit() {
+    let bvh = Bvh::build(PrimSet::from_scene(&mixed_scene(), DVec3::ZERO));
+    let mut steps = Steps::default();
+    for (o, d) in [
+        (Vec3::new(f32::NAN, 0.0, 10.0), Vec3::NEG_Z),
+        (Vec3::new(0.0, 0.0, 10.0), Vec3::new(f32::NAN, 0.0, -1.0)),
+        (Vec3::splat(f32::NAN), Vec3::splat(f32::NAN)),
+    ] {
+        let r = Ray1::new(o, d);
+        let h = closest(&bvh, &r, f32::INFINITY, true, &mut steps);
+        assert!(!h.is_hit(), "NaN ray {r:?} hit {h:?}");
+        assert!(!bvh.occluded_1(&r, f32::INFINITY, &mut steps));
+    }
+}
+
+#[test]
+fn empty_tree_has_no_wide_nodes_and_misses() {
+    let bvh = Bvh::build(PrimSet::default());
+    assert!(bvh.wide.nodes.is_empty());
+    let r = Ray1::new(Vec3::ZERO, Vec3::Z);
+    let mut steps = Steps::default();
+    assert!(!closest(&bvh, &r, f32::INFINITY, true, &mut steps).is_hit());
+    assert!(!bvh.occluded_1(&r, f32::INFINITY, &mut steps));
+}
+
+#[test]
+fn every_triangle_is_in_exactly_one_block_lane() {
+    // large enough (> 4 MiB of blocks) for the huge-page copy of the block array
+    let bvh = Bvh::build(PrimSet::from_triangles(torus(320, 160)));
+    assert!(bvh.wide.blocks.len() * std::mem::size_of_val(&bvh.wide.blocks[0]) > 4 << 20);
+    let n = bvh.prims.triangles.len();
+    let mut seen = vec![0u32; n];
+    for b in &bvh.wide.blocks {
+        assert!(b.count >= 1 && b.count <= 8);
+        for l in 0..b.count as usize {
+            let i = b.first as usize + l;
+            seen[i] += 1;
+            // the lane holds that triangle's vertices
+            for (vi, p) in bvh.prims.triangles[i].v.iter().enumerate() {
+                for a in 0..3 {
+                    assert_eq!(b.tri.v[vi][a].to_array()[l], p[a]);
+                }
+            }
+        }
+    }
+    assert!(
+        seen.iter().all(|&c| c == 1),
+        "a triangle is missing or repeated"
+    );
+    assert!(bvh.wide.depth() <= bvh.depth());
+}
+
+/// Triangles and rays for the kernel test: torus triangles and random ones, rays aimed
+/// inside, at vertices and along edges, and random rays.
+#[test]
+fn kernel_1x8_equals_1x1_per_lane() {
+    let mut rng = Rng(16);
+    let mut tris = torus(24, 12);
+    for _ in 0..256 {
+        let c = rng.vec_in(DVec3::splat(-2.0), DVec3::splat(2.0));
+        let s = rng.range(0.01, 2.0);
+        tris.push(Triangle32 {
+            v: [c, c + rng.unit() * s, c + rng.unit() * s].map(|p| p.as_vec3()),
+        });
+    }
+    let (mut hits, mut lanes) = (0usize, 0usize);
+    // blocks of 1..=8 triangles, so padding lanes are exercised too
+    let mut start = 0;
+    let mut k = 0;
+    while start < tris.len() {
+        let len = (k % 8 + 1).min(tris.len() - start);
+        k += 1;
+        let block = &tris[start..start + len];
+        start += len;
+        let t8 = Triangle8::new(block);
+        for q in 0..24 {
+            let target = &block[rng.next_u64() as usize % len];
+            let aim = match q % 4 {
+                0 => {
+                    let (b1, b2) = (rng.f64() as f32, rng.f64() as f32);
+                    let (b1, b2) = if b1 + b2 > 1.0 {
+                        (1.0 - b1, 1.0 - b2)
+                    } else {
+                        (b1, b2)
+                    };
+                    target.v[0]
+                        + (target.v[1] - target.v[0]) * b1
+                        + (target.v[2] - target.v[0]) * b2
+                }
+                1 => target.v[q % 3],
+                2 => (target.v[0] + target.v[1]) * 0.5,
+                _ => rng.vec_in(DVec3::splat(-2.0), DVec3::splat(2.0)).as_vec3(),
+            };
+            let o = rng.vec_in(DVec3::splat(-4.0), DVec3::splat(4.0)).as_vec3();
+            let r = Ray1::new(o, (aim - o).normalize());
+            let tr = TriRay8::new(&r);
+            for t_max in [f32::INFINITY, rng.range(0.0, 8.0) as f32] {
+                let (m, t, u, v) = t8.intersect_1x8(&tr, Mask8::ALL, t_max);
+                let occ = t8.occluded_1x8(&tr, Mask8::ALL, t_max);
+                for lane in len..8 {
+                    assert!(!m.lane(lane) && !occ.lane(lane), "padding lane {lane} hit");
+                }
+                for (lane, tri) in block.iter().enumerate() {
+                    lanes += 1;
+                    let one = tri.intersect_1(&r, t_max);
+                    let eight = m
+                        .lane(lane)
+                        .then(|| (t.to_array()[lane], u.to_array()[lane], v.to_array()[lane]));
+                    assert_eq!(
+                        one.map(|h| (h.0.to_bits(), h.1.to_bits(), h.2.to_bits())),
+                        eight.map(|h| (h.0.to_bits(), h.1.to_bits(), h.2.to_bits())),
+                        "lane {lane}, ray {r:?}, t_max {t_max}"
+                    );
+                    assert_eq!(occ.lane(lane), tri.occluded_1(&r, t_max));
+                    hits += one.is_some() as usize;
+                }
+            }
+        }
+    }
+    println!("kernel: {hits} hits in {lanes} lane tests");
+    assert!(
+        hits * 20 > lanes,
+        "too few hits ({hits} of {lanes}) to test anything"
+    );
+}
