@@ -131,9 +131,10 @@ struct RenderArgs {
     /// Output file (.bmp or .png, replaced atomically); default: the next free Output_1N.bmp.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Image side in pixels (default: the scene's `pixels`).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_PIXELS))]
-    size: Option<u32>,
+    /// Image size: a side in pixels (square) or WIDTHxHEIGHT such as 3840x2160
+    /// (default: the scene's `pixels`, square). The field of view is vertical.
+    #[arg(long, value_parser = parse_render_size)]
+    size: Option<viewer::Size>,
     /// Eye position [default: 100,100,50].
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     eye: Option<DVec3>,
@@ -252,13 +253,35 @@ fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
     })
 }
 
+/// `--size N` (square) or `--size WxH`.
+fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
+    if s.contains(['x', 'X']) {
+        return s.parse();
+    }
+    let n: u32 = s
+        .trim()
+        .parse()
+        .ok()
+        .filter(|&v| (1..=MAX_PIXELS).contains(&i64::from(v)))
+        .ok_or_else(|| {
+            format!("'{s}' is not a size in 1..={MAX_PIXELS} pixels (or WIDTHxHEIGHT)")
+        })?;
+    Ok(viewer::Size {
+        width: n,
+        height: n,
+    })
+}
+
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     let (parsed, name) = load(args.scene.as_deref())?;
     let scene = parsed.scene;
-    let size = args.size.unwrap_or(scene.pixels);
+    let size = args.size.unwrap_or(viewer::Size {
+        width: scene.pixels,
+        height: scene.pixels,
+    });
     let settings = RenderSettings {
-        width: size,
-        height: size,
+        width: size.width,
+        height: size.height,
         camera: camera(args)?,
         threads: args.threads.map(|t| t as usize),
         progress: true,
@@ -276,7 +299,9 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     let s = &rendered.stats;
     let secs = s.elapsed.as_secs_f64();
     eprintln!(
-        "{name}: {size}x{size}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
+        "{name}: {}x{}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
+        size.width,
+        size.height,
         args.profile,
         args.threads.map_or_else(
             || rayon::current_num_threads().to_string(),

@@ -244,3 +244,55 @@ fn default_command_renders_the_given_scene_headless() {
         "{stderr}"
     );
 }
+
+fn cli_render(dir: &Path, args: &[&str], out: &str) -> Framebuffer {
+    let o = Command::new(env!("CARGO_BIN_EXE_octaray"))
+        .current_dir(dir)
+        .args(["render", "-o", out])
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    Framebuffer::load(&dir.join(out)).unwrap()
+}
+
+/// `--size WxH` renders a non-square frame with a vertical field of view: a 96×48
+/// frame's middle 48 columns are the 48×48 square frame, on the reference and the
+/// fast path, and the two paths agree.
+#[test]
+fn cli_renders_non_square_frames() {
+    let dir = std::env::temp_dir().join(format!("octaray-wxh-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for profile in ["reference", "fast"] {
+        let p = ["--profile", profile];
+        let wide = cli_render(&dir, &[&p[..], &["--size", "96x48"]].concat(), "w.png");
+        let square = cli_render(&dir, &[&p[..], &["--size", "48"]].concat(), "s.png");
+        assert_eq!((wide.width, wide.height), (96, 48), "{profile}");
+        assert_eq!((square.width, square.height), (48, 48), "{profile}");
+        let mut off = 0;
+        for y in 0..48 {
+            for x in 0..48 {
+                let (a, b) = (wide.pixels[y * 96 + 24 + x], square.pixels[y * 48 + x]);
+                off += usize::from((0..3).any(|c| a[c].abs_diff(b[c]) > 1));
+            }
+        }
+        assert!(off <= 2, "{profile}: {off} pixels of the centre differ");
+        let tall = cli_render(&dir, &[&p[..], &["--size", "20X40"]].concat(), "t.bmp");
+        assert_eq!((tall.width, tall.height), (20, 40), "{profile}");
+    }
+    let r = cli_render(
+        &dir,
+        &["--profile", "reference", "--size", "96x48"],
+        "r.png",
+    );
+    let f = cli_render(&dir, &["--profile", "fast", "--size", "96x48"], "f.png");
+    let off = r
+        .pixels
+        .iter()
+        .zip(&f.pixels)
+        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > 2))
+        .count();
+    assert!(off * 100 <= r.pixels.len(), "{off} pixels off by > 2/255");
+    let _ = std::fs::remove_dir_all(&dir);
+}
