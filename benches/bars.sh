@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The speed bars in one run, peers and octaray back to back (ratios only mean
+# something within one run on a shared machine). Usage, from the repository root:
+#   ../shared/peers/embree/run.sh /tmp/embree-peer   # once: builds bench_e3, makes the data
+#   apt-get install povray hyperfine                 # once
+#   benches/bars.sh [/tmp/embree-peer] [../shared/peers/povray]
+set -euo pipefail
+peer=${1:-/tmp/embree-peer}
+pov=${2:-../shared/peers/povray}
+cargo build --release -q
+o=$PWD/target/release/octaray
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+uptime
+(
+  cd "$peer"
+  ./bench_e3 data/torus100k.mesh data/primary.rays 1 8 5
+  ./bench_e3 data/torus100k.mesh data/incoherent.rays 1 1 5
+  ./bench_e3 data/torus1m.mesh data/primary.rays 1 8 3
+)
+"$o" bench-trace "$peer/data/torus100k.obj" 2>&1 | grep -v '^  ('
+"$o" bench-trace "$peer/data/torus1m.obj" --reps 3 2>&1 | grep -E 'mode=8|bvh:'
+uptime
+# given scene 768², recursion level 4, whole process, 2 threads
+hyperfine -N -w 2 -r 15 --export-markdown "$tmp/given.md" \
+  "$o render --size 768 -o $tmp/f.bmp" \
+  "$o render --size 768 --profile reference -o $tmp/r.bmp"
+cat "$tmp/given.md"
+if command -v povray >/dev/null; then
+  hyperfine -w 1 -r 5 --export-markdown "$tmp/pov.md" \
+    "povray +I$pov/assignment_scene.pov +O$tmp/pov.png +FN +W768 +H768 -A +WT2 -D File_Gamma=1.0 Declare=RL=4" \
+    "$o render $pov/assignment_scene.txt --size 768 --eye 100,100,50 --look-at 0,0,0 --threads 2 -o $tmp/o.bmp"
+  cat "$tmp/pov.md"
+fi
+# 2 threads vs 1 on a 4K frame (render time reported by octaray itself, then whole process)
+for t in 1 2 1 2; do "$o" render --size 3840x2160 --threads $t -o "$tmp/4k.bmp"; done
+hyperfine -N -w 1 -r 5 \
+  "$o render --size 3840x2160 --threads 1 -o $tmp/4k1.bmp" \
+  "$o render --size 3840x2160 --threads 2 -o $tmp/4k2.bmp"
+uptime
