@@ -74,36 +74,13 @@ impl Bvh {
                 }
             }
         }
-        let nq = self.prims.free_quadrics.len();
-        if nq > 0 {
-            steps.prims += nq as u64;
-            steps.quadrics += nq as u64;
-            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
-        }
-        if self.prims.floor.is_some() {
-            steps.prims += 1;
-            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
-        }
+        self.intersect_beside_1(r, hit, steps);
     }
 
     /// Whether anything lies on the ray with 0 < t < t_max.
     pub fn occluded_1_binary(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
-        if self.prims.floor.is_some() {
-            steps.prims += 1;
-            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
-                return true;
-            }
-        }
-        let nq = self.prims.free_quadrics.len();
-        if nq > 0 {
-            steps.prims += nq as u64;
-            steps.quadrics += nq as u64;
-            if self
-                .prims
-                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
-            {
-                return true;
-            }
+        if self.occluded_beside_1(r, t_max, steps) {
+            return true;
         }
         if self.nodes.is_empty() {
             return false;
@@ -133,6 +110,46 @@ impl Bvh {
                 stack[sp] = node.first;
                 stack[sp + 1] = node.first + 1;
                 sp += 2;
+            }
+        }
+        false
+    }
+
+    /// The primitives beside the tree, closest hit: unbounded quadrics, then the floor
+    /// (after the tree, so an exact tie keeps the tree's lower object index).
+    #[inline]
+    pub(crate) fn intersect_beside_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
+        }
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
+        }
+    }
+
+    /// Whether the floor or an unbounded quadric blocks the ray before `t_max` (tested
+    /// before the tree: one plane test often settles a shadow ray).
+    #[inline]
+    pub(crate) fn occluded_beside_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        if self.prims.floor.is_some() {
+            steps.prims += 1;
+            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
+                return true;
+            }
+        }
+        let nq = self.prims.free_quadrics.len();
+        if nq > 0 {
+            steps.prims += nq as u64;
+            steps.quadrics += nq as u64;
+            if self
+                .prims
+                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
+            {
+                return true;
             }
         }
         false

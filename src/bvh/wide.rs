@@ -521,16 +521,7 @@ impl Bvh {
                 }
             }
         }
-        let nq = self.prims.free_quadrics.len();
-        if nq > 0 {
-            steps.prims += nq as u64;
-            steps.quadrics += nq as u64;
-            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
-        }
-        if self.prims.floor.is_some() {
-            steps.prims += 1;
-            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
-        }
+        self.intersect_beside_1(r, hit, steps);
     }
 
     #[inline]
@@ -592,22 +583,8 @@ impl Bvh {
     /// Whether anything lies on the ray with 0 < t < t_max (the floor, the unbounded
     /// quadrics, then the 8-wide tree, unordered; stops at the first blocker).
     pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
-        if self.prims.floor.is_some() {
-            steps.prims += 1;
-            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
-                return true;
-            }
-        }
-        let nq = self.prims.free_quadrics.len();
-        if nq > 0 {
-            steps.prims += nq as u64;
-            steps.quadrics += nq as u64;
-            if self
-                .prims
-                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
-            {
-                return true;
-            }
+        if self.occluded_beside_1(r, t_max, steps) {
+            return true;
         }
         let w = &self.wide;
         if w.nodes.is_empty() || !finite(r) {
