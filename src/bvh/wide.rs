@@ -266,6 +266,16 @@ impl WideBvh {
     /// the cache at once: the slab test reads the box lines, then the child or triangle
     /// lines, each a miss of its own on incoherent rays without this.
     #[inline(always)]
+    fn prefetch_children(&self, node: &WideNode, mut bits: u32) {
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            self.prefetch(node.child[s], node.meta[s]);
+        }
+    }
+
+    /// Prefetches one child: its node, or its first triangle block.
+    #[inline(always)]
     fn prefetch(&self, child: u32, meta: u32) {
         if meta == INTERIOR {
             if let Some(n) = self.nodes.get(child as usize) {
@@ -458,12 +468,7 @@ impl Bvh {
                     steps.boxes += 1;
                     let (m, near) = br.test(&node.bounds, hit.t);
                     let mut bits = m.bits();
-                    let mut b = bits;
-                    while b != 0 {
-                        let s = b.trailing_zeros() as usize;
-                        b &= b - 1;
-                        w.prefetch(node.child[s], node.meta[s]);
-                    }
+                    w.prefetch_children(node, bits);
                     if bits != 0 {
                         let first = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
@@ -603,12 +608,7 @@ impl Bvh {
             let node = &w.nodes[ni as usize];
             steps.boxes += 1;
             let mut bits = br.test(&node.bounds, t_max).0.bits();
-            let mut b = bits;
-            while b != 0 {
-                let s = b.trailing_zeros() as usize;
-                b &= b - 1;
-                w.prefetch(node.child[s], node.meta[s]);
-            }
+            w.prefetch_children(node, bits);
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
