@@ -23,7 +23,7 @@ pub mod wide;
 
 pub use node::{Aabb, BvhNode};
 
-use crate::geometry::PrimSet;
+use crate::geometry::{PrimKind, PrimSet};
 
 /// Depth limit of the traversal stacks; the builder keeps the tree below it (SAH
 /// splits to depth 48, then halvings: at most 48 + 28 levels for 2²⁸ primitives).
@@ -39,6 +39,18 @@ pub struct Steps {
     /// Ray–quadric tests, per ray (per active lane in packets): zero in a scene
     /// without quadrics (`RenderStats::quadric_tests`).
     pub quadrics: u64,
+}
+
+impl Steps {
+    /// Counts a leaf of `count` primitives of `kind` met by `lanes` rays: primitive
+    /// tests per query, quadric tests per ray.
+    #[inline(always)]
+    pub fn leaf(&mut self, kind: PrimKind, count: usize, lanes: u32) {
+        self.prims += count as u64;
+        if kind == PrimKind::Quadric {
+            self.quadrics += (count * lanes as usize) as u64;
+        }
+    }
 }
 
 /// A BVH over a primitive set, with the unbounded primitives beside it.

@@ -23,10 +23,7 @@ impl Bvh {
                     let node = &self.nodes[ni];
                     if node.is_leaf() {
                         let count = node.count() as usize;
-                        steps.prims += count as u64;
-                        if node.kind() == PrimKind::Quadric {
-                            steps.quadrics += count as u64;
-                        }
+                        steps.leaf(node.kind(), count, 1);
                         self.prims
                             .intersect_1(node.kind(), node.first as usize, count, r, hit);
                     } else {
@@ -96,10 +93,7 @@ impl Bvh {
             }
             if node.is_leaf() {
                 let count = node.count() as usize;
-                steps.prims += count as u64;
-                if node.kind() == PrimKind::Quadric {
-                    steps.quadrics += count as u64;
-                }
+                steps.leaf(node.kind(), count, 1);
                 if self
                     .prims
                     .occluded_1(node.kind(), node.first as usize, count, r, t_max)

@@ -174,10 +174,7 @@ impl Bvh {
             let node = &nodes[ni];
             if node.is_leaf() {
                 let count = node.count() as usize;
-                steps.prims += count as u64;
-                if node.kind() == PrimKind::Quadric {
-                    steps.quadrics += (count * m.count() as usize) as u64;
-                }
+                steps.leaf(node.kind(), count, m.count());
                 self.prims
                     .intersect_x8(node.kind(), node.first as usize, count, r, m, hit);
                 limit = cull_limit(hit.t, active);
@@ -301,10 +298,7 @@ impl Bvh {
                 }
                 if node.is_leaf() {
                     let count = node.count() as usize;
-                    steps.prims += count as u64;
-                    if node.kind() == PrimKind::Quadric {
-                        steps.quadrics += (count * m.count() as usize) as u64;
-                    }
+                    steps.leaf(node.kind(), count, m.count());
                     let blocked = self.prims.occluded_x8(
                         node.kind(),
                         node.first as usize,

@@ -540,11 +540,8 @@ impl Bvh {
     ) {
         let count = meta & COUNT_MASK;
         let kind = PrimKind::from_u32(meta >> 28);
-        steps.prims += count as u64;
+        steps.leaf(kind, count as usize, 1);
         if kind != PrimKind::Triangle {
-            if kind == PrimKind::Quadric {
-                steps.quadrics += count as u64;
-            }
             self.prims
                 .intersect_1(kind, child as usize, count as usize, wr.r, hit);
             return;
@@ -635,11 +632,8 @@ impl Bvh {
     ) -> bool {
         let count = meta & COUNT_MASK;
         let kind = PrimKind::from_u32(meta >> 28);
-        steps.prims += count as u64;
+        steps.leaf(kind, count as usize, 1);
         if kind != PrimKind::Triangle {
-            if kind == PrimKind::Quadric {
-                steps.quadrics += count as u64;
-            }
             return self
                 .prims
                 .occluded_1(kind, child as usize, count as usize, wr.r, t_max);
