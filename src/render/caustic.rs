@@ -462,19 +462,15 @@ impl CausticMap {
             return DVec3::ZERO;
         }
         let norm = |r: f64| 2.0 / (std::f64::consts::PI * r * r);
-        // the wide estimate first: where it finds nothing (most of a scene), so would
-        // the narrow one, which it contains
-        let wide = self
-            .wide
-            .as_ref()
-            .map(|w| (w.gather(p, n, w.radius), w.radius));
-        if let Some(((sum, 0), _)) = wide {
-            return sum;
-        }
+        // the narrow estimate first: where it has enough photons (the bright spectrum)
+        // the wide one, sixteen times the photons, is never gathered
         let (sum, count) = self.gather(p, n, self.radius);
-        match wide {
-            Some(((wide_sum, _), r)) if count < MIN_PHOTONS => wide_sum * norm(r),
-            _ => sum * norm(self.radius),
+        if count >= MIN_PHOTONS {
+            return sum * norm(self.radius);
+        }
+        match &self.wide {
+            Some(w) => w.gather(p, n, w.radius).0 * norm(w.radius),
+            None => sum * norm(self.radius),
         }
     }
 
