@@ -37,7 +37,7 @@ pub struct Row {
     pub scene: String,
     pub size: u32,
     pub profile: String,
-    /// The path that rendered it (scenes with glass always take the reference).
+    /// The path that rendered it.
     pub path: RenderPath,
     /// Median wall time of `Profile::render`, seconds.
     pub seconds: f64,
@@ -135,11 +135,7 @@ pub fn measure(
                 scene: name.clone(),
                 size,
                 profile: p.name.clone(),
-                path: if scene.has_prisms() {
-                    RenderPath::Reference
-                } else {
-                    p.path
-                },
+                path: p.path,
                 seconds,
                 stats: frame.stats,
                 speedup: ref_time / seconds.max(1e-9),
@@ -291,8 +287,7 @@ pub fn markdown(
          largest channel difference (1/255), % of pixels off by more than 1/255 and 8/255, and \
          the same counted outside the masks of legitimate differences (silhouettes from the \
          reference's primary-hit ids, edges where the reference jumps by more than 24/255 to a \
-         neighbour). Scenes with glass (prism*) are rendered by the reference path on every \
-         profile. Plot: `profiles/tradeoff.png` (PSNR against time, log scale).\n",
+         neighbour). Plot: `profiles/tradeoff.png` (PSNR against time, log scale).\n",
         rayon::current_num_threads()
     );
     let table = |md: &mut String, rows: &[Row]| {

@@ -1,4 +1,5 @@
-//! The dispersive prism (spec §6), end to end on the reference path:
+//! The dispersive prism (spec §6), end to end on both paths (the reference, and the
+//! packet path with its own photon map traced through its BVH):
 //!
 //! - white light through flat glass (kt = 1) keeps its colour, for camera rays and for the
 //!   caustic, and loses exactly the Fresnel reflections;
@@ -13,7 +14,8 @@
 use std::path::PathBuf;
 
 use glam::DVec3;
-use octaray::render::caustic::CausticSettings;
+use octaray::render::caustic::{CausticMap, CausticSettings};
+use octaray::render::packet::{self, PacketRenderer};
 use octaray::render::reference::{self, Reference};
 use octaray::render::{RenderSettings, RenderStats};
 use octaray::scene::parse::{parse_scene, parse_scene_file};
@@ -25,6 +27,18 @@ fn root() -> PathBuf {
 
 fn scene(text: &str) -> Scene {
     parse_scene(text, "inline").unwrap().scene
+}
+
+/// The photon maps of both paths: the reference's (f64, every object tested) and the
+/// packet renderer's (f32 frame centred on the scene's camera, through its BVH).
+fn maps(s: &Scene, settings: &CausticSettings) -> Vec<(&'static str, CausticMap)> {
+    let eye = RenderSettings::for_scene(s).camera.eye;
+    let r = Reference::with_caustics(s, settings);
+    let p = PacketRenderer::with_caustics(s, eye, settings);
+    vec![
+        ("reference", r.caustics().expect("reference map").clone()),
+        ("packet", p.caustics().expect("packet map").clone()),
+    ]
 }
 
 /// A flat glass plate between z = 10 and z = 12: a "prism" whose two parallel triangular
@@ -83,6 +97,45 @@ fn flat_glass_passes_white_without_tint() {
     }
 }
 
+/// The same on the packet path, through the quantised image: the centre pixel of a 9 × 9
+/// frame is grey (channels within 1/255) at the plate's transmittance (within 0.5 % and
+/// the 8-bit step).
+#[test]
+fn flat_glass_passes_white_without_tint_on_the_packet_path() {
+    for b in [0.0, 0.0042] {
+        let text = format!(
+            "20 9 2 {} triangle -50 -50 1  50 -50 1  0 50 1  1 1 1  1 0 0 0  1  0 0",
+            plate(b)
+        );
+        let s = scene(&text);
+        let mut settings = RenderSettings::for_scene(&s);
+        settings.camera = Camera::look_at(
+            DVec3::new(0.0, 0.0, 40.0),
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::Y,
+            10.0,
+        )
+        .unwrap();
+        settings.width = 9;
+        settings.height = 9;
+        let out = packet::render(&s, &settings);
+        assert!(
+            out.stats.refraction_rays > 0,
+            "the ray went through the glass"
+        );
+        let c = out.image.pixels[4 * 9 + 4].map(i32::from);
+        assert!(
+            (c[0] - c[1]).abs() <= 1 && (c[1] - c[2]).abs() <= 1,
+            "b {b}: {c:?}"
+        );
+        let t = plate_transmittance(1.5 + b / 0.55f64.powi(2));
+        assert!(
+            (c[1] as f64 / 255.0 - t).abs() < 0.005 + 0.5 / 255.0,
+            "b {b}: {c:?} vs {t}"
+        );
+    }
+}
+
 /// The caustic: a spotlight straight down through the plate onto a white floor tile.
 /// Direct light is blocked (shadow rays treat glass as opaque); the photons deliver the
 /// spec's irradiance Lc·(N·L) = Lc times the plate's transmittance, untinted.
@@ -95,8 +148,12 @@ fn flat_glass_caustic_delivers_the_transmitted_irradiance() {
         radius: Some(3.0),
         seed: 1,
     };
-    let r = Reference::with_caustics(&s, &settings);
-    let map = r.caustics().expect("the spotlight reaches the plate");
+    for (path, map) in maps(&s, &settings) {
+        plate_caustic(path, &map);
+    }
+}
+
+fn plate_caustic(path: &str, map: &CausticMap) {
     let t = plate_transmittance(1.5);
     for p in [DVec3::new(10.0, 10.0, 0.0), DVec3::new(14.0, 7.0, 0.0)] {
         let e = map.irradiance(p, DVec3::Z);
@@ -104,11 +161,11 @@ fn flat_glass_caustic_delivers_the_transmitted_irradiance() {
         // random wavelengths in the kernel) and the paraxial distance rule
         assert!(
             (e - DVec3::splat(t)).abs().max_element() < 0.04 * t,
-            "{p}: {e} vs {t}"
+            "{path}: {p}: {e} vs {t}"
         );
         assert!(
             (e.x - e.y).abs() < 0.04 && (e.y - e.z).abs() < 0.04,
-            "tint at {p}: {e}"
+            "{path}: tint at {p}: {e}"
         );
     }
     // outside the spot cone (8° at 100: radius 14), beyond the widened kernel (4 × 3),
@@ -186,8 +243,12 @@ fn caustic_lands_where_minimum_deviation_puts_it() {
         radius: None,
         seed: 3,
     };
-    let r = Reference::with_caustics(&s, &settings);
-    let map = r.caustics().expect("the spotlight reaches the prism");
+    for (path, map) in maps(&s, &settings) {
+        min_deviation_caustic(path, &map, theta1);
+    }
+}
+
+fn min_deviation_caustic(path: &str, map: &CausticMap, theta1: f64) {
     let mut xs = Vec::new();
     for lambda in [450.0, 650.0] {
         let band: Vec<DVec3> = map
@@ -196,7 +257,11 @@ fn caustic_lands_where_minimum_deviation_puts_it() {
             .filter(|p| (p.lambda_nm - lambda).abs() < 3.0 && p.position.z.abs() < 1e-6)
             .map(|p| p.position)
             .collect();
-        assert!(band.len() > 300, "{lambda} nm: {} photons", band.len());
+        assert!(
+            band.len() > 300,
+            "{path}: {lambda} nm: {} photons",
+            band.len()
+        );
         // the direct spectrum (in at one face, out at the other) is the densest spot;
         // photons that bounced inside land elsewhere: find the densest 1-unit bin in x,
         // then take the centroid of the photons within 5 units of it
@@ -221,12 +286,12 @@ fn caustic_lands_where_minimum_deviation_puts_it() {
         // 450–650 nm spans ~10): the centroid of a 0.3° cone vs its central ray
         assert!(
             (centroid.x - expect).abs() < 0.3 && centroid.y.abs() < 0.3,
-            "{lambda} nm: centroid {centroid}, analytic x {expect}"
+            "{path}: {lambda} nm: centroid {centroid}, analytic x {expect}"
         );
         xs.push(centroid.x);
     }
     // blue is bent more than red: it lands nearer the prism (the beam runs to +x)
-    assert!(xs[0] < xs[1] - 3.0, "{xs:?}");
+    assert!(xs[0] < xs[1] - 3.0, "{path}: {xs:?}");
 }
 
 /// Hue of an RGB colour in degrees (0 red, 120 green, 240 blue, ~270–300 violet).
@@ -250,8 +315,12 @@ fn spectrum_on_the_floor_runs_from_red_to_violet() {
     let s = parse_scene_file(&root().join("scenes/prism.txt"))
         .unwrap()
         .scene;
-    let r = Reference::new(&s);
-    let map = r.caustics().expect("the spotlight reaches the prism");
+    for (path, map) in maps(&s, &CausticSettings::default()) {
+        spectrum_in_order(path, &map);
+    }
+}
+
+fn spectrum_in_order(path: &str, map: &CausticMap) {
     // the ends the scene's comment gives (700 nm and 400 nm), extended by 15 %
     let red = DVec3::new(22.44, 37.89, 0.0);
     let violet = DVec3::new(37.57, 22.11, 0.0);
@@ -265,21 +334,30 @@ fn spectrum_on_the_floor_runs_from_red_to_violet() {
         .iter()
         .map(|s| s.1.max_element())
         .fold(0.0, f64::max);
-    assert!(peak > 0.5, "a bright spectrum ({peak})");
+    assert!(peak > 0.5, "{path}: a bright spectrum ({peak})");
     let hues: Vec<f64> = samples
         .iter()
         .filter(|s| s.1.max_element() > 0.1 * peak)
         .map(|s| hue(s.1))
         .collect();
-    assert!(hues.len() > 30, "{hues:?}");
-    assert!(hues[0] < 40.0, "starts red: {hues:?}");
-    assert!(*hues.last().unwrap() > 245.0, "ends violet: {hues:?}");
+    assert!(hues.len() > 30, "{path}: {hues:?}");
+    assert!(hues[0] < 40.0, "{path}: starts red: {hues:?}");
+    assert!(
+        *hues.last().unwrap() > 245.0,
+        "{path}: ends violet: {hues:?}"
+    );
     for w in hues.windows(2) {
-        assert!(w[1] >= w[0] - 8.0, "hue runs in order: {hues:?}");
+        assert!(w[1] >= w[0] - 8.0, "{path}: hue runs in order: {hues:?}");
     }
     // it passes through green and blue
-    assert!(hues.iter().any(|h| (100.0..150.0).contains(h)), "{hues:?}");
-    assert!(hues.iter().any(|h| (200.0..250.0).contains(h)), "{hues:?}");
+    assert!(
+        hues.iter().any(|h| (100.0..150.0).contains(h)),
+        "{path}: {hues:?}"
+    );
+    assert!(
+        hues.iter().any(|h| (200.0..250.0).contains(h)),
+        "{path}: {hues:?}"
+    );
 }
 
 /// A scene without glass runs no photon pass and never splits a ray.
@@ -292,6 +370,9 @@ fn scenes_without_glass_pay_nothing() {
     settings.height = 32;
     let out = reference::render(&s, &settings);
     assert_eq!(out.stats.refraction_rays, 0);
+    let p = PacketRenderer::new(&s, settings.camera.eye);
+    assert!(p.caustics().is_none() && !p.has_glass());
+    assert_eq!(p.render(&settings).stats.refraction_rays, 0);
 }
 
 /// The photon pass is deterministic: the same seed gives the same map, whatever the

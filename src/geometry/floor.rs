@@ -13,6 +13,12 @@ use crate::scene::Floor;
 
 // ---------------------------------------------------------------- reference (f64)
 
+/// A closest-hit query tests the floor last; where an object was hit, with that hit's t
+/// scaled by this as `t_max`: the floor wins only if it is closer than the object by
+/// more than 64 f64 ulps, relative (see
+/// `geometry::FLOOR_TIE`, the f32 twin).
+pub const TIE: f64 = 1.0 - 64.0 * f64::EPSILON;
+
 /// Nearest t with 0 < t < t_max where the ray meets the finite floor.
 pub fn intersect_ref(ray: &Ray, t_max: f64) -> Option<f64> {
     // rays parallel to the plane never hit it (this also keeps 0/0 out)

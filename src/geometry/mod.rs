@@ -190,6 +190,15 @@ impl Hit1 {
     }
 }
 
+/// The floor is tested after everything else; where something was hit, with that hit's
+/// t scaled by this as `t_max`: it wins only if it is closer by more than 8 f32 ulps,
+/// relative. The floor loses every tie (spec
+/// §4), but a primitive lying on it (a prism's base face, a triangle at z = 0) meets a
+/// ray at a t computed by another formula than the floor's, so in f32 the two "equal"
+/// distances differ by a few ulps either way; the reference computes them alike in f64
+/// and the tie goes to the object, so here it does too.
+pub const FLOOR_TIE: f32 = 1.0 - 8.0 * f32::EPSILON;
+
 /// Every primitive of the fast path, by kind, in one f32 frame (coordinates relative
 /// to a base point, e.g. the camera, so far-away scenes keep their precision), with
 /// the scene object each came from (ties in t go to the lower object index; the
@@ -382,8 +391,11 @@ impl PrimSet {
                 }
                 PrimKind::Floor => {
                     if let Some(f) = &self.floor {
-                        let (m, t) = f.intersect_x8(r, active, hit.t);
-                        self.record_x8(hit, m, t, zero, code);
+                        let t_max = hit
+                            .hit_mask()
+                            .select(hit.t * f32x8::splat(FLOOR_TIE), hit.t);
+                        let (m, t) = f.intersect_x8(r, active, t_max);
+                        self.record_x8(hit, m & t.lt(t_max), t, zero, code);
                     }
                 }
             }
@@ -456,7 +468,14 @@ impl PrimSet {
                     }
                 }
                 PrimKind::Floor => {
-                    if let Some(t) = self.floor.and_then(|f| f.intersect_1(r, hit.t)) {
+                    let t_max = if hit.is_hit() {
+                        hit.t * FLOOR_TIE
+                    } else {
+                        hit.t
+                    };
+                    if let Some(t) = self.floor.and_then(|f| f.intersect_1(r, t_max))
+                        && t < t_max
+                    {
                         self.record_1(hit, t, 0.0, 0.0, code);
                     }
                 }

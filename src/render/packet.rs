@@ -17,16 +17,43 @@
 //!   normal ([`offset_origin_x8`]).
 //! - Packets with few active lanes (incoherent secondary rays) fall back to the
 //!   single-ray traversal of the same tree, lane by lane, below [`FALLBACK_LANES`].
+//! - Glass (prisms), only in scenes that have it ([`glass`]): a glass lane leaves the
+//!   mirror chain; its reflected ray and its transmitted rays (one per wavelength of the
+//!   pixel, 16 as two packets of 8) are traced as new packets one level deeper, and the
+//!   caustic photon map adds the light glass bends onto the surfaces it lands on.
+
+mod glass;
 
 use glam::{DVec3, Vec3};
 use wide::f32x8;
 
+use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
 use crate::geometry::{Hit1, PrimKind, PrimSet, split_code};
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, offset_origin_x8};
-use crate::scene::{Floor, Material, Scene};
+use crate::scene::{Floor, Glass, Material, Scene};
+
+/// Calls `$r.$method::<ANY_HIT, EPS, GLASS>(args)` with the renderer's knobs and the
+/// scene's glass as constants: the one place a frame picks its compiled instance.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! with_packet_knobs {
+    ($r:expr, $method:ident($($arg:expr),* $(,)?)) => {{
+        let r = $r;
+        match (r.shadow_any_hit, r.offset_epsilon.is_some(), r.has_glass()) {
+            (true, false, false) => r.$method::<true, false, false>($($arg),*),
+            (true, true, false) => r.$method::<true, true, false>($($arg),*),
+            (false, false, false) => r.$method::<false, false, false>($($arg),*),
+            (false, true, false) => r.$method::<false, true, false>($($arg),*),
+            (true, false, true) => r.$method::<true, false, true>($($arg),*),
+            (true, true, true) => r.$method::<true, true, true>($($arg),*),
+            (false, false, true) => r.$method::<false, false, true>($($arg),*),
+            (false, true, true) => r.$method::<false, true, true>($($arg),*),
+        }
+    }};
+}
 
 /// Rows per rayon work item (two packet rows).
 pub const BAND_ROWS: u32 = 4;
@@ -92,6 +119,40 @@ pub struct PacketRenderer {
     /// of the hit's error bound (profile knob `ray_offset = "epsilon:<value>"`,
     /// chosen once per frame).
     pub offset_epsilon: Option<f32>,
+    /// Per object, its glass if it is a prism; empty when the scene has none.
+    glass: Vec<Option<Glass>>,
+    /// Light bent by glass onto other surfaces; `None` without glass.
+    caustics: Option<CausticMap>,
+    /// Seed of the per-pixel wavelengths (the caustic settings' seed).
+    seed: u64,
+}
+
+/// Where a packet sits in its path from the camera (only glass scenes read it).
+#[derive(Clone, Copy, Debug)]
+struct PathState {
+    /// Recursion level the packet is traced at (1 for camera rays).
+    level: u32,
+    /// `None`: RGB rays; else each lane's wavelength (nm): monochromatic rays.
+    lambda: Option<[f32; 8]>,
+    /// Per lane, the most this ray's colour can add to its pixel (see
+    /// [`crate::render::spectral::GLASS_CUTOFF`]).
+    weight: f32x8,
+    /// Nested glass branchings so far.
+    depth: u32,
+    /// Pixel of lane 0 (lane k is pixel (x + k % 4, y + k / 4)), for the wavelengths.
+    pixel: [u32; 2],
+}
+
+impl PathState {
+    fn camera(pixel: [u32; 2]) -> PathState {
+        PathState {
+            level: 1,
+            lambda: None,
+            weight: f32x8::splat(1.0),
+            depth: 0,
+            pixel,
+        }
+    }
 }
 
 /// The per-lane surface data a level's shading needs, gathered for the winners.
@@ -109,8 +170,14 @@ struct Gathered {
 
 impl PacketRenderer {
     /// Builds the BVH and tables of `scene` in a frame centred on `base` (use the
-    /// camera's eye).
+    /// camera's eye), with the default caustic settings should the scene have glass.
     pub fn new(scene: &Scene, base: DVec3) -> PacketRenderer {
+        Self::with_caustics(scene, base, &CausticSettings::default())
+    }
+
+    /// [`PacketRenderer::new`]; `caustic` sets the photon count, radius and seed of the
+    /// photon pass, which runs here (through this BVH) only if the scene has glass.
+    pub fn with_caustics(scene: &Scene, base: DVec3, caustic: &CausticSettings) -> PacketRenderer {
         let prims = PrimSet::from_scene(scene, base);
         let bvh = Bvh::build(prims);
         let rel = |p: DVec3| (p - base).as_vec3();
@@ -129,7 +196,7 @@ impl PacketRenderer {
                 )
             }),
         });
-        PacketRenderer {
+        let mut r = PacketRenderer {
             bvh,
             base,
             materials: scene
@@ -143,7 +210,29 @@ impl PacketRenderer {
             fallback_lanes: FALLBACK_LANES,
             shadow_any_hit: true,
             offset_epsilon: None,
+            glass: Vec::new(),
+            caustics: None,
+            seed: caustic.seed,
+        };
+        if scene.has_prisms() {
+            r.glass = scene
+                .objects
+                .iter()
+                .map(|o| super::caustic::glass_of(&o.shape))
+                .collect();
+            r.caustics = CausticMap::build(scene, caustic, &r);
         }
+        r
+    }
+
+    /// Whether the scene has glass (then every frame runs the glass instance).
+    pub fn has_glass(&self) -> bool {
+        !self.glass.is_empty()
+    }
+
+    /// The caustic photon map, if the scene has glass that a light reaches.
+    pub fn caustics(&self) -> Option<&CausticMap> {
+        self.caustics.as_ref()
     }
 
     /// The frame's origin in world space.
@@ -335,7 +424,8 @@ impl PacketRenderer {
     }
 
     /// The colours seen along a packet of camera rays (traced at level 1), each
-    /// channel in [0, 1]; lanes outside `active` are black.
+    /// channel in [0, 1]; lanes outside `active` are black. Should a ray meet glass,
+    /// lane k takes the wavelengths of pixel (k % 4, k / 4).
     pub fn trace(
         &self,
         camera: &RayPacket8,
@@ -343,47 +433,71 @@ impl PacketRenderer {
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> Vec3x8 {
-        self.trace_with(camera, active, &mut Vec::new(), stats, steps)
+        self.trace_with(camera, active, [0, 0], &mut Vec::new(), stats, steps)
     }
 
-    /// [`PacketRenderer::trace`] with a reusable buffer for the mirror chain (one
-    /// allocation per band instead of one per packet: malloc/free took 7 % of a
-    /// 1-thread render of the given scene under perf).
+    /// [`PacketRenderer::trace`] for the 4 × 2 pixels whose top-left is `pixel` (their
+    /// wavelengths, should they meet glass), with a reusable buffer for the mirror
+    /// chain (one allocation per band instead of one per packet: malloc/free took 7 %
+    /// of a 1-thread render of the given scene under perf).
     pub fn trace_with(
         &self,
         camera: &RayPacket8,
         active: Mask8,
+        pixel: [u32; 2],
         chain: &mut Chain,
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> Vec3x8 {
-        match (self.shadow_any_hit, self.offset_epsilon.is_some()) {
-            (true, false) => self.trace_knobs::<true, false>(camera, active, chain, stats, steps),
-            (true, true) => self.trace_knobs::<true, true>(camera, active, chain, stats, steps),
-            (false, false) => self.trace_knobs::<false, false>(camera, active, chain, stats, steps),
-            (false, true) => self.trace_knobs::<false, true>(camera, active, chain, stats, steps),
-        }
+        crate::with_packet_knobs!(
+            self,
+            trace_knobs(camera, active, pixel, chain, stats, steps)
+        )
     }
 
     /// [`PacketRenderer::trace_with`] with the knobs as constants: `ANY_HIT` must be
-    /// `self.shadow_any_hit` and `EPS` `self.offset_epsilon.is_some()` (a frame loop
-    /// picks the instance once, see [`PacketRenderer::render`]).
-    pub fn trace_knobs<const ANY_HIT: bool, const EPS: bool>(
+    /// `self.shadow_any_hit`, `EPS` `self.offset_epsilon.is_some()` and `GLASS`
+    /// `self.has_glass()` (a frame loop picks the instance once, with
+    /// [`crate::with_packet_knobs`]).
+    pub fn trace_knobs<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
         &self,
         camera: &RayPacket8,
         active: Mask8,
+        pixel: [u32; 2],
         chain: &mut Chain,
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> Vec3x8 {
         debug_assert_eq!(
-            (ANY_HIT, EPS),
-            (self.shadow_any_hit, self.offset_epsilon.is_some())
+            (ANY_HIT, EPS, GLASS),
+            (
+                self.shadow_any_hit,
+                self.offset_epsilon.is_some(),
+                self.has_glass()
+            )
         );
+        let path = PathState::camera(pixel);
+        self.trace_path::<ANY_HIT, EPS, GLASS>(camera, active, &path, chain, stats, steps)
+    }
+
+    /// The colours along a packet traced from `path.level` on: the mirror chain in a
+    /// loop, per-level clamping folded back from the deepest level. In glass scenes a
+    /// glass lane ends the chain: [`glass`] traces what it reflects and transmits one
+    /// level deeper (recursively) and returns the lane's whole clamped colour.
+    fn trace_path<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
+        &self,
+        camera: &RayPacket8,
+        active: Mask8,
+        path: &PathState,
+        chain: &mut Chain,
+        stats: &mut RenderStats,
+        steps: &mut Steps,
+    ) -> Vec3x8 {
         chain.clear();
         let mut ray = *camera;
         let mut active = active;
-        let mut level = 1;
+        let mut level = path.level;
+        let mut weight = path.weight;
         loop {
             let hit = self.closest(&ray, active, steps);
             let lanes = active & hit.hit_mask();
@@ -391,13 +505,33 @@ impl PacketRenderer {
                 break;
             }
             let g = self.gather(&ray, &hit, lanes);
-            let local = self.phong::<ANY_HIT, EPS>(&g, -ray.dir, lanes, stats, steps);
-            chain.push((local, g.kr, lanes));
+            let mut local = self.phong::<ANY_HIT, EPS>(&g, -ray.dir, lanes, stats, steps);
+            let mut kr = g.kr;
+            if GLASS {
+                let glass = self.glass_lanes(&hit, lanes);
+                local = self.add_caustic(&g, lanes.and_not(glass), local);
+                if glass.any() {
+                    if level < self.recursion_level {
+                        let here = PathState {
+                            level,
+                            weight,
+                            ..*path
+                        };
+                        let split = self.split_at_glass::<ANY_HIT, EPS>(
+                            &ray, &hit, &g, glass, &here, stats, steps,
+                        );
+                        local = local + split;
+                    }
+                    // the glass lanes' colour is whole: nothing deeper adds to it
+                    kr = glass.select(f32x8::ZERO, kr);
+                }
+            }
+            chain.push((local, kr, lanes));
             // level N gives N − 1 bounces; kr = 0 would add exactly nothing
             if level >= self.recursion_level {
                 break;
             }
-            let next = lanes.and_not(g.kr.eq8(f32x8::ZERO));
+            let next = lanes.and_not(kr.eq8(f32x8::ZERO));
             if next.none() {
                 break;
             }
@@ -409,6 +543,9 @@ impl PacketRenderer {
             active = next;
             stats.reflection_rays += next.count() as u64;
             level += 1;
+            if GLASS {
+                weight *= kr;
+            }
         }
         let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
         let clamp = |v: f32x8| v.max(zero).min(one);
@@ -423,18 +560,13 @@ impl PacketRenderer {
     }
 
     /// Renders a frame: 4 × 2 pixel packets of camera rays through pixel centres. The
-    /// knobs (`shadow_any_hit`, `offset_epsilon`) pick one compiled instance here,
-    /// once per frame.
+    /// knobs (`shadow_any_hit`, `offset_epsilon`) and the scene's glass pick one
+    /// compiled instance here, once per frame.
     pub fn render(&self, settings: &RenderSettings) -> Rendered {
-        match (self.shadow_any_hit, self.offset_epsilon.is_some()) {
-            (true, false) => self.render_knobs::<true, false>(settings),
-            (true, true) => self.render_knobs::<true, true>(settings),
-            (false, false) => self.render_knobs::<false, false>(settings),
-            (false, true) => self.render_knobs::<false, true>(settings),
-        }
+        crate::with_packet_knobs!(self, render_knobs(settings))
     }
 
-    fn render_knobs<const ANY_HIT: bool, const EPS: bool>(
+    fn render_knobs<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
         &self,
         settings: &RenderSettings,
     ) -> Rendered {
@@ -466,8 +598,9 @@ impl PacketRenderer {
                     let p = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
                     let d = p * (f32x8::splat(1.0) / p.length());
                     let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                    let c = self.trace_knobs::<ANY_HIT, EPS>(
-                        &ray, active, &mut chain, &mut stats, &mut steps,
+                    let pixel = [px as u32, first_row + py as u32];
+                    let c = self.trace_knobs::<ANY_HIT, EPS, GLASS>(
+                        &ray, active, pixel, &mut chain, &mut stats, &mut steps,
                     );
                     stats.primary_rays += active.count() as u64;
                     let q = |v: f32x8| (v * f32x8::splat(255.0)).round().to_array();

@@ -54,12 +54,7 @@ impl<'a> Prepared<'a> {
     /// Builds what `profile` needs for `scene`: the reference (and its photon map) now,
     /// the packet BVH at the first frame.
     pub fn new(profile: &Profile, scene: &'a Scene) -> Prepared<'a> {
-        // The packet path has no refraction: scenes with glass go to the reference.
-        let path = if scene.has_prisms() {
-            RenderPath::Reference
-        } else {
-            profile.path
-        };
+        let path = profile.path;
         let engine = match path {
             RenderPath::Reference => {
                 let caustic = CausticSettings {
@@ -86,7 +81,7 @@ impl<'a> Prepared<'a> {
         &self.profile
     }
 
-    /// The path that renders this scene (glass always goes to the reference).
+    /// The path that renders this scene.
     pub fn path(&self) -> RenderPath {
         match self.engine {
             Engine::Reference(_) => RenderPath::Reference,
@@ -99,15 +94,19 @@ impl<'a> Prepared<'a> {
             unreachable!("packet() on the reference engine")
         };
         cell.get_or_init(|| {
+            let caustic = CausticSettings {
+                photons: self.profile.photons,
+                ..CausticSettings::default()
+            };
             let mut r = match self.profile.max_recursion {
                 Some(cap) if cap < self.scene.recursion_level => {
                     let capped = Scene {
                         recursion_level: cap,
                         ..self.scene.clone()
                     };
-                    PacketRenderer::new(&capped, eye)
+                    PacketRenderer::with_caustics(&capped, eye, &caustic)
                 }
-                _ => PacketRenderer::new(self.scene, eye),
+                _ => PacketRenderer::with_caustics(self.scene, eye, &caustic),
             };
             r.fallback_lanes = self.profile.single_ray_lanes;
             r.shadow_any_hit = self.profile.shadow_any_hit;
@@ -138,12 +137,7 @@ impl<'a> Prepared<'a> {
             (Engine::Packet(_), n) => {
                 let p = self.packet(settings.camera.eye);
                 // the packet knobs pick one compiled instance, once per frame
-                match (p.shadow_any_hit, p.offset_epsilon.is_some()) {
-                    (true, false) => packet_supersampled::<true, false>(p, &inner, n),
-                    (true, true) => packet_supersampled::<true, true>(p, &inner, n),
-                    (false, false) => packet_supersampled::<false, false>(p, &inner, n),
-                    (false, true) => packet_supersampled::<false, true>(p, &inner, n),
-                }
+                crate::with_packet_knobs!(p, supersampled(&inner, n))
             }
         };
         if (inner.width, inner.height) != (settings.width, settings.height) {
@@ -182,7 +176,25 @@ fn reference_supersampled(tracer: &Reference, settings: &RenderSettings, n: u32)
 
 /// n × n samples per pixel on the packet path: 4 × 2 packets over the n×-resolution
 /// grid (as `PacketRenderer::render` builds them), summed per pixel in f32.
-fn packet_supersampled<const ANY_HIT: bool, const EPS: bool>(
+trait Supersampled {
+    fn supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
+        &self,
+        settings: &RenderSettings,
+        n: u32,
+    ) -> Rendered;
+}
+
+impl Supersampled for PacketRenderer {
+    fn supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
+        &self,
+        settings: &RenderSettings,
+        n: u32,
+    ) -> Rendered {
+        packet_supersampled::<ANY_HIT, EPS, GLASS>(self, settings, n)
+    }
+}
+
+fn packet_supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
     p: &PacketRenderer,
     settings: &RenderSettings,
     n: u32,
@@ -220,8 +232,10 @@ fn packet_supersampled<const ANY_HIT: bool, const EPS: bool>(
                 let q = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
                 let d = q * (f32x8::splat(1.0) / q.length());
                 let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                let c =
-                    p.trace_knobs::<ANY_HIT, EPS>(&ray, active, &mut chain, &mut stats, &mut steps);
+                let pixel = [px as u32, (big_first + py) as u32];
+                let c = p.trace_knobs::<ANY_HIT, EPS, GLASS>(
+                    &ray, active, pixel, &mut chain, &mut stats, &mut steps,
+                );
                 stats.primary_rays += active.count() as u64;
                 let (r, g, b) = (c.x.to_array(), c.y.to_array(), c.z.to_array());
                 for lane in 0..8 {

@@ -36,7 +36,9 @@ use glam::DVec3;
 
 use super::caustic::{CausticMap, CausticSettings, PhotonHit, PhotonTracer, glass_of};
 use super::frame::render_bands;
-use super::spectral::{CAMERA_SAMPLES, Wavelengths, glass_interface, nm_to_um};
+use super::spectral::{
+    CAMERA_SAMPLES, GLASS_CUTOFF, MAX_GLASS_DEPTH, Wavelengths, glass_interface, nm_to_um,
+};
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::geometry::{self, RefHit, SurfacePoint, floor, prism};
 use crate::math::Ray;
@@ -57,14 +59,6 @@ pub struct Found {
     pub target: Target,
     pub hit: RefHit,
 }
-
-/// Glass branches that could add at most this much to a pixel's colour (their path
-/// weight: see `radiance`) are not traced: 1/2048 is an eighth of an 8-bit step.
-pub const GLASS_CUTOFF: f64 = 1.0 / 2048.0;
-
-/// Most nested glass branchings followed on the recursion stack (the heavier branch of
-/// each split continues in a loop, the lighter one recurses).
-const MAX_GLASS_DEPTH: u32 = 64;
 
 /// The reference renderer over one scene.
 pub struct Reference<'a> {
@@ -157,7 +151,15 @@ impl<'a> Reference<'a> {
                 });
             }
         }
-        if let Some(t) = floor::intersect_ref(ray, t_best) {
+        // the floor loses ties, also those that rounding splits: a face lying on it (a
+        // prism's base) meets the ray at a t computed by the triangle formula, a few
+        // ulps either side of the floor's
+        let t_floor = if best.is_some() {
+            t_best * floor::TIE
+        } else {
+            t_best
+        };
+        if let Some(t) = floor::intersect_ref(ray, t_floor) {
             best = Some(Found {
                 target: Target::Floor,
                 hit: RefHit::at(t),

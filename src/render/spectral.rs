@@ -112,6 +112,15 @@ pub fn unit_from_hash(h: u64) -> f64 {
     (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
+/// Glass branches that could add at most this much to a pixel's colour (their path
+/// weight: the product of the branch weights from the camera, times the wavelength's
+/// largest RGB weight on monochromatic paths) are not traced: 1/2048 is an eighth of an
+/// 8-bit step. Every path uses the same rule.
+pub const GLASS_CUTOFF: f64 = 1.0 / 2048.0;
+
+/// Most nested glass branchings followed (each glass hit that branches nests one more).
+pub const MAX_GLASS_DEPTH: u32 = 64;
+
 // ---------------------------------------------------------------- per-pixel wavelengths
 
 /// The wavelengths of one pixel's glass rays and their RGB weights: stratified over
