@@ -158,7 +158,11 @@ impl PathState {
 /// The per-lane surface data a level's shading needs, gathered for the winners.
 struct Gathered {
     point: Vec3x8,
+    /// Facing the incoming ray.
     normal: Vec3x8,
+    /// Lanes whose geometric normal was turned round to face the ray (glass needs
+    /// the outward one).
+    flipped: Mask8,
     err: Vec3x8,
     color: Vec3x8,
     ka: f32x8,
@@ -311,6 +315,7 @@ impl PacketRenderer {
         let mut err = [Vec3::ZERO; 8];
         let mut color = [Vec3::ZERO; 8];
         let mut k = [[0.0f32; 8]; 5];
+        let mut flipped = 0;
         let (t, u, v) = (hit.t.as_array(), hit.u.as_array(), hit.v.as_array());
         let mut bits = lanes.bits();
         while bits != 0 {
@@ -333,6 +338,7 @@ impl PacketRenderer {
             point[i] = s.point;
             // every normal is flipped to face the incoming ray
             normal[i] = if s.normal.dot(ray.dir) > 0.0 {
+                flipped |= 1 << i;
                 -s.normal
             } else {
                 s.normal
@@ -346,6 +352,7 @@ impl PacketRenderer {
         Gathered {
             point: Vec3x8::from_lanes(&point),
             normal: Vec3x8::from_lanes(&normal),
+            flipped: Mask8::from_bits(flipped),
             err: Vec3x8::from_lanes(&err),
             color: Vec3x8::from_lanes(&color),
             ka: f32x8::new(k[0]),

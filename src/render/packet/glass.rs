@@ -25,32 +25,54 @@
 use glam::{DVec3, Vec3};
 use wide::f32x8;
 
-use super::{Gathered, PacketRenderer, PathState};
+use super::{Chain, Gathered, PacketRenderer, PathState};
 use crate::bvh::Steps;
 use crate::geometry::Hit1;
 use crate::math::Ray;
-use crate::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, offset_origin_1};
+use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::render::RenderStats;
 use crate::render::caustic::{PhotonHit, PhotonTracer};
-use crate::render::spectral::{
-    CAMERA_SAMPLES, GLASS_CUTOFF, MAX_GLASS_DEPTH, Wavelengths, glass_interface, nm_to_um,
-};
+use crate::render::spectral::{CAMERA_SAMPLES, GLASS_CUTOFF, MAX_GLASS_DEPTH, Wavelengths};
 
-/// A ray leaving a glass hit, and what its colour is worth to the lane that spawned it.
-#[derive(Clone, Copy, Debug)]
-struct Branch {
-    /// Lane of the glass hit.
-    lane: usize,
-    origin: Vec3,
-    dir: Vec3,
-    /// Wavelength (nm) of a monochromatic ray.
-    lambda: f32,
-    /// Path weight of the new ray (for pruning deeper down).
-    weight: f32,
-    /// The spawning lane adds `coef ⊙ colour`.
-    coef: Vec3,
-    /// Refracted (for the counters).
-    transmitted: bool,
+/// What happens to eight rays at glass surfaces (f32 twin of
+/// [`crate::render::spectral::glass_interface`], lane by lane).
+struct Interface8 {
+    /// Mirror directions.
+    reflected: Vec3x8,
+    /// Fresnel reflectance (1 under total internal reflection).
+    fresnel: f32x8,
+    /// Refracted directions, valid in `refracts`.
+    transmitted: Vec3x8,
+    refracts: Mask8,
+}
+
+/// Splits unit directions `d` at glass surfaces with unit *outward* normals `n_out` and
+/// indices `n_glass`, in air: Snell's law, total internal reflection, exact Fresnel.
+#[inline]
+fn interface_x8(d: Vec3x8, n_out: Vec3x8, n_glass: f32x8) -> Interface8 {
+    let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
+    let entering = d.dot(n_out).lt(zero);
+    // the normal on the incident side, and the indices either side
+    let n = Vec3x8::select(entering, n_out, -n_out);
+    let n_i = entering.select(one, n_glass);
+    let n_t = entering.select(n_glass, one);
+    let eta = n_i / n_t;
+    let cos_i = (-n.dot(d)).max(zero).min(one);
+    let sin2_t = eta * eta * (one - cos_i * cos_i).max(zero);
+    let refracts = sin2_t.lt(one);
+    let cos_t = (one - sin2_t).max(zero).sqrt();
+    let t = d * eta + n * (eta * cos_i - cos_t);
+    let transmitted = t * (one / t.length());
+    let rs = (n_i * cos_i - n_t * cos_t) / (n_i * cos_i + n_t * cos_t);
+    let rp = (n_t * cos_i - n_i * cos_t) / (n_t * cos_i + n_i * cos_t);
+    let fresnel = refracts.select(f32x8::splat(0.5) * (rs * rs + rp * rp), one);
+    let r = d - n * (f32x8::splat(2.0) * d.dot(n));
+    Interface8 {
+        reflected: r * (one / r.length()),
+        fresnel,
+        transmitted,
+        refracts,
+    }
 }
 
 impl PacketRenderer {
@@ -95,16 +117,6 @@ impl PacketRenderer {
         }
     }
 
-    /// The origin of a ray leaving `p` along `w` (the single-lane twin of `leave`).
-    fn leave_1<const EPS: bool>(&self, p: Vec3, err: Vec3, n: Vec3, w: Vec3) -> Vec3 {
-        if EPS {
-            let e = self.offset_epsilon.unwrap_or(0.0);
-            p + n * if w.dot(n) < 0.0 { -e } else { e }
-        } else {
-            offset_origin_1(p, err, n, w)
-        }
-    }
-
     /// What the glass lanes of a packet reflect and transmit, traced at `path.level + 1`
     /// and weighted (zero in the other lanes). The caller adds it to the lanes' Phong
     /// colour and ends their mirror chain.
@@ -119,51 +131,46 @@ impl PacketRenderer {
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> Vec3x8 {
-        let (t, u, v) = (hit.t.as_array(), hit.u.as_array(), hit.v.as_array());
-        let weight = path.weight.as_array();
-        let cutoff = GLASS_CUTOFF as f32;
-        let nest = path.depth < MAX_GLASS_DEPTH;
-        // RGB reflected rays stay in their lanes (their pixel's wavelengths deeper
-        // down); every monochromatic ray goes into `mono`, eight to a packet
-        let mut rgb: [Option<Branch>; 8] = [None; 8];
-        let mut mono: Vec<Branch> = Vec::new();
+        // per lane: kr, kt and Cauchy's a and b of the glass it hit
+        let mut k = [[0.0f32; 8]; 4];
         let mut bits = glass.bits();
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let code = hit.prim_lane(i);
-            let object = self.bvh.prims.object(code) as usize;
-            let Some(gl) = self.glass[object] else {
-                continue;
-            };
-            let kr = self.materials[object].kr as f64;
-            let d32 = ray.dir.lane(i);
-            let lane_ray = Ray1::new(ray.origin.lane(i), d32);
-            // the unflipped normal: prism faces are wound outwards
-            let outward = self
-                .bvh
-                .prims
-                .surface_1(code, &lane_ray, t[i], u[i], v[i])
-                .normal;
-            let (p, err) = (g.point.lane(i), g.err.lane(i));
-            let d = d32.as_dvec3();
-            let n_out = outward.as_dvec3();
-            let w = weight[i];
-            let branch = |dir: DVec3, lambda: f32, weight: f32, coef: DVec3, transmitted| {
-                let dir = dir.as_vec3();
-                Branch {
-                    lane: i,
-                    origin: self.leave_1::<EPS>(p, err, outward, dir),
-                    dir,
-                    lambda,
-                    weight,
-                    coef: coef.as_vec3(),
-                    transmitted,
-                }
-            };
-            match path.lambda {
-                None => {
-                    // RGB meets glass: the transmitted light splits into wavelengths
+            let object = self.bvh.prims.object(hit.prim_lane(i)) as usize;
+            if let Some(gl) = self.glass[object] {
+                let m = &self.materials[object];
+                k[0][i] = m.kr;
+                k[1][i] = gl.kt as f32;
+                k[2][i] = gl.cauchy_a as f32;
+                k[3][i] = gl.cauchy_b as f32;
+            }
+        }
+        let [kr, kt, ca, cb] = k.map(f32x8::new);
+        let outward = Vec3x8::select(g.flipped, -g.normal, g.normal);
+        let cutoff = f32x8::splat(GLASS_CUTOFF as f32);
+        let nest = path.depth < MAX_GLASS_DEPTH;
+        let deeper = |lambda, weight| PathState {
+            level: path.level + 1,
+            lambda,
+            weight,
+            depth: path.depth + 1,
+            pixel: path.pixel,
+        };
+        let zero = f32x8::ZERO;
+        match path.lambda {
+            None => {
+                // RGB meets glass: the transmitted light splits into the pixel's
+                // wavelengths, two packets of eight per lane; the reflected ray (one
+                // direction for every wavelength) stays RGB, in its lane
+                let mut out = [Vec3::ZERO; 8];
+                let mut reflect_weight = [Vec3::ZERO; 8];
+                let (kr, kt, ca, cb) = (kr.to_array(), kt.to_array(), ca.to_array(), cb.to_array());
+                let w = path.weight.to_array();
+                let mut bits = glass.bits();
+                while bits != 0 {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
                     let (x, y) = (path.pixel[0] + i as u32 % 4, path.pixel[1] + i as u32 / 4);
                     let wl = Wavelengths::for_pixel(x, y, self.seed);
                     // one bound for every wavelength of the pixel (as the reference)
@@ -171,126 +178,121 @@ impl PacketRenderer {
                         .weight
                         .iter()
                         .map(|w| w.max_element())
-                        .fold(0.0, f64::max);
-                    let mut reflect_weight = DVec3::ZERO;
-                    let mut reflected = d;
-                    for k in 0..CAMERA_SAMPLES {
-                        let n = gl.index(nm_to_um(wl.lambda[k]));
-                        let f = glass_interface(d, n_out, n);
-                        reflected = f.reflected;
-                        reflect_weight += wl.weight[k] * (kr + gl.kt * f.fresnel);
-                        let wt = gl.kt * (1.0 - f.fresnel);
-                        let reach = (w as f64 * wt * reach_w) as f32;
-                        if let Some(tr) = f.transmitted
-                            && reach > cutoff
-                            && nest
-                        {
-                            mono.push(branch(
-                                tr,
-                                wl.lambda[k] as f32,
-                                reach,
-                                wl.weight[k] * wt,
-                                true,
-                            ));
+                        .fold(0.0, f64::max) as f32;
+                    let splat = |v: Vec3x8| Vec3x8::splat(v.lane(i));
+                    let (p, err, n_out, d) =
+                        (splat(g.point), splat(g.err), splat(outward), splat(ray.dir));
+                    for half in 0..CAMERA_SAMPLES / 8 {
+                        let lambda: [f32; 8] =
+                            std::array::from_fn(|j| wl.lambda[half * 8 + j] as f32);
+                        let um = f32x8::new(lambda) * f32x8::splat(1e-3);
+                        let n_glass = f32x8::splat(ca[i]) + f32x8::splat(cb[i]) / (um * um);
+                        let f = interface_x8(d, n_out, n_glass);
+                        let fresnel = f.fresnel.to_array();
+                        let wt = f32x8::splat(kt[i]) * (f32x8::splat(1.0) - f.fresnel);
+                        let reach = f32x8::splat(w[i] * reach_w) * wt;
+                        let wt = wt.to_array();
+                        for j in 0..8 {
+                            let wk = wl.weight[half * 8 + j].as_vec3();
+                            reflect_weight[i] += wk * (kr[i] + kt[i] * fresnel[j]);
+                        }
+                        let go = f.refracts & reach.gt(cutoff);
+                        if !nest || go.none() {
+                            continue;
+                        }
+                        let o = self.leave::<EPS>(p, err, n_out, f.transmitted);
+                        let packet = RayPacket8::new(o, f.transmitted, go);
+                        stats.refraction_rays += go.count() as u64;
+                        let c = self.trace_deeper::<ANY_HIT, EPS>(
+                            &packet,
+                            go,
+                            &deeper(Some(lambda), reach),
+                            stats,
+                            steps,
+                        );
+                        for j in 0..8 {
+                            if go.lane(j) {
+                                out[i] += wl.weight[half * 8 + j].as_vec3() * wt[j] * c.lane(j);
+                            }
                         }
                     }
-                    let wr = (w as f64 * reflect_weight.max_element()) as f32;
-                    if wr > cutoff && nest {
-                        rgb[i] = Some(branch(reflected, 0.0, wr, reflect_weight, false));
-                    }
                 }
-                Some(lambda) => {
-                    let l = lambda[i];
-                    let f = glass_interface(d, n_out, gl.index(nm_to_um(l as f64)));
-                    let wr = kr + gl.kt * f.fresnel;
-                    if (w as f64 * wr) as f32 > cutoff && nest {
-                        let b = branch(
-                            f.reflected,
-                            l,
-                            (w as f64 * wr) as f32,
-                            DVec3::splat(wr),
-                            false,
-                        );
-                        mono.push(b);
-                    }
-                    let wt = gl.kt * (1.0 - f.fresnel);
-                    if let Some(tr) = f.transmitted
-                        && wt > 0.0
-                        && (w as f64 * wt) as f32 > cutoff
-                        && nest
-                    {
-                        let b = branch(tr, l, (w as f64 * wt) as f32, DVec3::splat(wt), true);
-                        mono.push(b);
-                    }
+                // the reflected rays of the RGB lanes, in their own lanes
+                let rw = Vec3x8::from_lanes(&reflect_weight);
+                let wr = path.weight * rw.x.max(rw.y).max(rw.z);
+                let go = glass & wr.gt(cutoff);
+                let mut out = Vec3x8::from_lanes(&out);
+                if nest && go.any() {
+                    let d = ray.dir - outward * (f32x8::splat(2.0) * ray.dir.dot(outward));
+                    let d = d * (f32x8::splat(1.0) / d.length());
+                    let o = self.leave::<EPS>(g.point, g.err, outward, d);
+                    let packet = RayPacket8::new(o, d, go);
+                    stats.reflection_rays += go.count() as u64;
+                    let c = self.trace_deeper::<ANY_HIT, EPS>(
+                        &packet,
+                        go,
+                        &deeper(None, wr),
+                        stats,
+                        steps,
+                    );
+                    out = out + Vec3x8::select(go, rw * c, Vec3x8::ZERO);
                 }
+                out
+            }
+            Some(lambda) => {
+                // monochromatic lanes: one reflected and one transmitted packet, each
+                // lane at its own wavelength
+                let um = f32x8::new(lambda) * f32x8::splat(1e-3);
+                let f = interface_x8(ray.dir, outward, ca + cb / (um * um));
+                let wr = kr + kt * f.fresnel;
+                let wt = kt * (f32x8::splat(1.0) - f.fresnel);
+                let mut out = Vec3x8::ZERO;
+                if !nest {
+                    return out;
+                }
+                let go_r = glass & (path.weight * wr).gt(cutoff);
+                let go_t = glass & f.refracts & wt.gt(zero) & (path.weight * wt).gt(cutoff);
+                for (go, d, weight, transmitted) in [
+                    (go_r, f.reflected, wr, false),
+                    (go_t, f.transmitted, wt, true),
+                ] {
+                    if go.none() {
+                        continue;
+                    }
+                    let o = self.leave::<EPS>(g.point, g.err, outward, d);
+                    let packet = RayPacket8::new(o, d, go);
+                    if transmitted {
+                        stats.refraction_rays += go.count() as u64;
+                    } else {
+                        stats.reflection_rays += go.count() as u64;
+                    }
+                    let next = deeper(Some(lambda), path.weight * weight);
+                    let c = self.trace_deeper::<ANY_HIT, EPS>(&packet, go, &next, stats, steps);
+                    out = out + Vec3x8::select(go, c * weight, Vec3x8::ZERO);
+                }
+                out
             }
         }
-        let mut out = [Vec3::ZERO; 8];
-        let deeper = |lambda| PathState {
-            level: path.level + 1,
-            lambda,
-            weight: f32x8::ZERO, // set per batch
-            depth: path.depth + 1,
-            pixel: path.pixel,
-        };
-        if rgb.iter().any(Option::is_some) {
-            let c = self.trace_branches::<ANY_HIT, EPS>(&rgb, deeper(None), stats, steps);
-            for (b, c) in rgb.iter().zip(c) {
-                if let Some(b) = b {
-                    out[b.lane] += b.coef * c;
-                }
-            }
-        }
-        for chunk in mono.chunks(8) {
-            let mut batch: [Option<Branch>; 8] = [None; 8];
-            let mut lambda = [0.0f32; 8];
-            for (k, b) in chunk.iter().enumerate() {
-                batch[k] = Some(*b);
-                lambda[k] = b.lambda;
-            }
-            let c = self.trace_branches::<ANY_HIT, EPS>(&batch, deeper(Some(lambda)), stats, steps);
-            for (b, c) in chunk.iter().zip(c) {
-                out[b.lane] += b.coef * c;
-            }
-        }
-        Vec3x8::from_lanes(&out)
     }
 
-    /// Traces up to eight branches as one packet (lane k: `batch[k]`), at `path`'s
-    /// level with their weights; their colours, by lane.
-    fn trace_branches<const ANY_HIT: bool, const EPS: bool>(
+    /// [`PacketRenderer::trace_path`] of a packet spawned at glass, with a mirror chain
+    /// from this thread's pool (a recursion level deeper than its caller's).
+    fn trace_deeper<const ANY_HIT: bool, const EPS: bool>(
         &self,
-        batch: &[Option<Branch>; 8],
-        mut path: PathState,
+        packet: &RayPacket8,
+        active: Mask8,
+        path: &PathState,
         stats: &mut RenderStats,
         steps: &mut Steps,
-    ) -> [Vec3; 8] {
-        let mut origin = [Vec3::ZERO; 8];
-        let mut dir = [Vec3::Z; 8];
-        let mut weight = [0.0f32; 8];
-        let mut bits = 0;
-        for (k, b) in batch.iter().enumerate() {
-            if let Some(b) = b {
-                (origin[k], dir[k], weight[k]) = (b.origin, b.dir, b.weight);
-                bits |= 1 << k;
-                if b.transmitted {
-                    stats.refraction_rays += 1;
-                } else {
-                    stats.reflection_rays += 1;
-                }
-            }
+    ) -> Vec3x8 {
+        thread_local! {
+            static CHAINS: std::cell::RefCell<Vec<Chain>> = const { std::cell::RefCell::new(Vec::new()) };
         }
-        let active = Mask8::from_bits(bits);
-        path.weight = f32x8::new(weight);
-        let packet = RayPacket8::new(
-            Vec3x8::from_lanes(&origin),
-            Vec3x8::from_lanes(&dir),
-            active,
-        );
-        let mut chain = Vec::new();
+        let mut chain = CHAINS.with(|c| c.borrow_mut().pop()).unwrap_or_default();
         let c =
-            self.trace_path::<ANY_HIT, EPS, true>(&packet, active, &path, &mut chain, stats, steps);
-        std::array::from_fn(|k| c.lane(k))
+            self.trace_path::<ANY_HIT, EPS, true>(packet, active, path, &mut chain, stats, steps);
+        CHAINS.with(|c| c.borrow_mut().push(chain));
+        c
     }
 }
 
