@@ -192,9 +192,9 @@ impl PacketRenderer {
                         let wt = f32x8::splat(kt[i]) * (f32x8::splat(1.0) - f.fresnel);
                         let reach = f32x8::splat(w[i] * reach_w) * wt;
                         let wt = wt.to_array();
-                        for j in 0..8 {
-                            let wk = wl.weight[half * 8 + j].as_vec3();
-                            reflect_weight[i] += wk * (kr[i] + kt[i] * fresnel[j]);
+                        let weights = &wl.weight[half * 8..half * 8 + 8];
+                        for (wk, fj) in weights.iter().zip(fresnel) {
+                            reflect_weight[i] += wk.as_vec3() * (kr[i] + kt[i] * fj);
                         }
                         let go = f.refracts & reach.gt(cutoff);
                         if !nest || go.none() {
@@ -210,9 +210,9 @@ impl PacketRenderer {
                             stats,
                             steps,
                         );
-                        for j in 0..8 {
+                        for (j, (wk, wtj)) in weights.iter().zip(wt).enumerate() {
                             if go.lane(j) {
-                                out[i] += wl.weight[half * 8 + j].as_vec3() * wt[j] * c.lane(j);
+                                out[i] += wk.as_vec3() * wtj * c.lane(j);
                             }
                         }
                     }
