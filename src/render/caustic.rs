@@ -213,7 +213,7 @@ impl DenseGrid {
     /// Calls `f(a, b)` for each run of photons in the grid rows that the sphere of
     /// radius `r` around `p` crosses, clipped to the sphere's chord in each row.
     #[inline]
-    fn runs(&self, p: DVec3, r: f64, mut f: impl FnMut(usize, usize)) {
+    fn runs(&self, p: DVec3, r: f64, f: &mut dyn FnMut(usize, usize)) {
         if self.start.is_empty() {
             return;
         }
@@ -233,25 +233,30 @@ impl DenseGrid {
         // distance (in cells) from q to the slab [k, k + 1)
         let gap = |c: f64, k: usize| (k as f64 - c).max(c - (k + 1) as f64).max(0.0);
         let rc2 = rc * rc;
+        // the x cells of the whole sphere: a row empty there is skipped without a sqrt
+        let Some((xa, xb)) = range(q.x, nx) else {
+            return;
+        };
         for z in z0..=z1 {
             let dz = gap(q.z, z);
             for y in y0..=y1 {
+                let row = nx * (y + ny * z);
+                if self.start[row + xa] == self.start[row + xb + 1] {
+                    continue;
+                }
                 let dy = gap(q.y, y);
                 let left = rc2 - dy * dy - dz * dz;
                 if left < 0.0 {
                     continue;
                 }
+                // clipped to the sphere's chord in this row
                 let chord = left.sqrt();
                 let (lo, hi) = ((q.x - chord).floor(), (q.x + chord).floor());
                 if hi < 0.0 || lo >= nx as f64 {
                     continue;
                 }
                 let (x0, x1) = (lo.max(0.0) as usize, (hi as usize).min(nx - 1));
-                let row = nx * (y + ny * z);
-                let (a, b) = (
-                    self.start[row + x0] as usize,
-                    self.start[row + x1 + 1] as usize,
-                );
+                let (a, b) = (self.start[row + x0] as usize, self.start[row + x1 + 1] as usize);
                 if a < b {
                     f(a, b);
                 }
@@ -303,10 +308,10 @@ impl GatherSoa {
         GatherSoa { origin, cols }
     }
 
-    /// Epanechnikov-weighted power and number of photons `a..b` within `r` of `p` that
-    /// arrive on the side `n` faces, on a surface of the same orientation.
+    /// Epanechnikov-weighted power and number of the photons of `runs` within `r` of
+    /// `p` that arrive on the side `n` faces, on a surface of the same orientation.
     #[inline]
-    fn sum(&self, a: usize, b: usize, p: DVec3, n: DVec3, r: f64) -> (DVec3, usize) {
+    fn sum(&self, runs: impl FnOnce(&mut dyn FnMut(usize, usize)), p: DVec3, n: DVec3, r: f64) -> (DVec3, usize) {
         use crate::math::packet::{Cmp8, Mask8};
         use wide::f32x8;
         let q = p - self.origin;
@@ -321,29 +326,32 @@ impl GatherSoa {
         };
         let (mut sr, mut sg, mut sb) = (zero, zero, zero);
         let mut count = 0;
-        let mut i = a;
-        while i < b {
-            let (dx, dy, dz) = (col(0, i) - qx, col(1, i) - qy, col(2, i) - qz);
-            let d2 = dx * dx + dy * dy + dz * dz;
-            let facing = (col(3, i) * nx + col(4, i) * ny + col(5, i) * nz).lt(zero);
-            let aligned = (col(6, i) * nx + col(7, i) * ny + col(8, i) * nz)
-                .abs()
-                .gt(cos);
-            // lanes past b belong to the next cell: masked off
-            let tail = if b - i < 8 {
-                Mask8::from_bits((1u32 << (b - i)) - 1)
-            } else {
-                Mask8::ALL
-            };
-            let m = d2.lt(r2) & facing & aligned & tail;
-            if m.any() {
-                count += m.count() as usize;
-                let w = m.select(one - d2 * inv_r2, zero);
-                sr += col(9, i) * w;
-                sg += col(10, i) * w;
-                sb += col(11, i) * w;
+        runs(&mut |a, b| {
+            let mut i = a;
+            while i < b {
+                let (dx, dy, dz) = (col(0, i) - qx, col(1, i) - qy, col(2, i) - qz);
+                let d2 = dx * dx + dy * dy + dz * dz;
+                let facing = (col(3, i) * nx + col(4, i) * ny + col(5, i) * nz).lt(zero);
+                let aligned = (col(6, i) * nx + col(7, i) * ny + col(8, i) * nz).abs().gt(cos);
+                // lanes past b belong to the next cell: masked off
+                let tail = if b - i < 8 {
+                    Mask8::from_bits((1u32 << (b - i)) - 1)
+                } else {
+                    Mask8::ALL
+                };
+                let m = d2.lt(r2) & facing & aligned & tail;
+                if m.any() {
+                    count += m.count() as usize;
+                    let w = m.select(one - d2 * inv_r2, zero);
+                    sr += col(9, i) * w;
+                    sg += col(10, i) * w;
+                    sb += col(11, i) * w;
+                }
+                i += 8;
             }
-            i += 8;
+        });
+        if count == 0 {
+            return (DVec3::ZERO, 0);
         }
         let h = |v: f32x8| v.to_array().iter().map(|&x| x as f64).sum::<f64>();
         (DVec3::new(h(sr), h(sg), h(sb)), count)
@@ -632,14 +640,7 @@ impl CausticMap {
     /// Epanechnikov-weighted power of the photons within `r` of `p` that arrive on the
     /// side `n` faces, on a surface of the same orientation, and their number.
     fn gather(&self, p: DVec3, n: DVec3, r: f64) -> (DVec3, usize) {
-        let mut sum = DVec3::ZERO;
-        let mut count = 0;
-        self.grid.runs(p, r, |a, b| {
-            let (s, c) = self.soa.sum(a, b, p, n, r);
-            sum += s;
-            count += c;
-        });
-        (sum, count)
+        self.soa.sum(|f| self.grid.runs(p, r, f), p, n, r)
     }
 }
 
