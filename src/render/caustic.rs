@@ -256,7 +256,10 @@ impl DenseGrid {
                     continue;
                 }
                 let (x0, x1) = (lo.max(0.0) as usize, (hi as usize).min(nx - 1));
-                let (a, b) = (self.start[row + x0] as usize, self.start[row + x1 + 1] as usize);
+                let (a, b) = (
+                    self.start[row + x0] as usize,
+                    self.start[row + x1 + 1] as usize,
+                );
                 if a < b {
                     f(a, b);
                 }
@@ -311,7 +314,13 @@ impl GatherSoa {
     /// Epanechnikov-weighted power and number of the photons of `runs` within `r` of
     /// `p` that arrive on the side `n` faces, on a surface of the same orientation.
     #[inline]
-    fn sum(&self, runs: impl FnOnce(&mut dyn FnMut(usize, usize)), p: DVec3, n: DVec3, r: f64) -> (DVec3, usize) {
+    fn sum(
+        &self,
+        runs: impl FnOnce(&mut dyn FnMut(usize, usize)),
+        p: DVec3,
+        n: DVec3,
+        r: f64,
+    ) -> (DVec3, usize) {
         use crate::math::packet::{Cmp8, Mask8};
         use wide::f32x8;
         let q = p - self.origin;
@@ -332,7 +341,9 @@ impl GatherSoa {
                 let (dx, dy, dz) = (col(0, i) - qx, col(1, i) - qy, col(2, i) - qz);
                 let d2 = dx * dx + dy * dy + dz * dz;
                 let facing = (col(3, i) * nx + col(4, i) * ny + col(5, i) * nz).lt(zero);
-                let aligned = (col(6, i) * nx + col(7, i) * ny + col(8, i) * nz).abs().gt(cos);
+                let aligned = (col(6, i) * nx + col(7, i) * ny + col(8, i) * nz)
+                    .abs()
+                    .gt(cos);
                 // lanes past b belong to the next cell: masked off
                 let tail = if b - i < 8 {
                     Mask8::from_bits((1u32 << (b - i)) - 1)
