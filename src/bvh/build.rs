@@ -196,7 +196,7 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
                     p.sphere_obj.push(prims.sphere_obj[r.index()]);
                 }
             }
-            PrimKind::Triangle => {
+            PrimKind::Triangle | PrimKind::TriangleMoller => {
                 for r in leaf {
                     p.triangles.push(prims.triangles[r.index()]);
                     p.triangle_obj.push(prims.triangle_obj[r.index()]);

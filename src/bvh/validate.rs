@@ -37,10 +37,9 @@ impl Bvh {
             let b = n.bounds();
             if n.is_leaf() {
                 let kind = n.kind();
-                let k = kind as usize;
-                if k >= 3 {
+                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&b| b == kind) else {
                     return Err(format!("leaf {i} has non-BVH kind {kind:?}"));
-                }
+                };
                 let (first, count) = (n.first as usize, n.count() as usize);
                 if first + count > p.len(kind) {
                     return Err(format!("leaf {i} range {first}+{count} out of bounds"));

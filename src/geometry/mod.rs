@@ -11,6 +11,7 @@
 //!   (watertight test); equal t ties go to the object listed first in the file.
 
 pub mod floor;
+pub mod moller;
 pub mod prism;
 pub mod quadric;
 pub mod sphere;
@@ -131,10 +132,19 @@ pub enum PrimKind {
     FreeQuadric = 3,
     /// The floor: tested beside the BVH, after everything else.
     Floor = 4,
+    /// The triangles (the same `PrimSet::triangles`) under the plain Möller–Trumbore
+    /// test instead of the watertight one: profile knob `triangle_test = "moller"`,
+    /// chosen once per scene when the primitives are built ([`PrimSet::moller`]).
+    TriangleMoller = 5,
 }
 
 impl PrimKind {
-    pub const BVH_KINDS: [PrimKind; 3] = [PrimKind::Sphere, PrimKind::Triangle, PrimKind::Quadric];
+    pub const BVH_KINDS: [PrimKind; 4] = [
+        PrimKind::Sphere,
+        PrimKind::Triangle,
+        PrimKind::Quadric,
+        PrimKind::TriangleMoller,
+    ];
 
     pub fn from_u32(k: u32) -> PrimKind {
         match k {
@@ -142,6 +152,7 @@ impl PrimKind {
             1 => PrimKind::Triangle,
             2 => PrimKind::Quadric,
             3 => PrimKind::FreeQuadric,
+            5 => PrimKind::TriangleMoller,
             _ => PrimKind::Floor,
         }
     }
@@ -216,6 +227,9 @@ pub struct PrimSet {
     pub floor: Option<floor::Floor32>,
     /// Number of degenerate triangles and all-zero quadrics dropped (never hit).
     pub dropped: usize,
+    /// The triangles are of kind [`PrimKind::TriangleMoller`] (plain test), not
+    /// [`PrimKind::Triangle`] (watertight).
+    pub moller: bool,
 }
 
 impl PrimSet {
@@ -291,7 +305,9 @@ impl PrimSet {
     pub fn len(&self, kind: PrimKind) -> usize {
         match kind {
             PrimKind::Sphere => self.spheres.len(),
-            PrimKind::Triangle => self.triangles.len(),
+            PrimKind::Triangle if self.moller => 0,
+            PrimKind::TriangleMoller if !self.moller => 0,
+            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles.len(),
             PrimKind::Quadric => self.quadrics.len(),
             PrimKind::FreeQuadric => self.free_quadrics.len(),
             PrimKind::Floor => self.floor.is_some() as usize,
@@ -302,7 +318,7 @@ impl PrimSet {
     pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
         match kind {
             PrimKind::Sphere => self.spheres[i].bounds(),
-            PrimKind::Triangle => self.triangles[i].bounds(),
+            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].bounds(),
             PrimKind::Quadric => self.quadrics[i].bounds().expect("bounded quadric"),
             PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
         }
@@ -313,7 +329,7 @@ impl PrimSet {
         let (kind, i) = split_code(code);
         match kind {
             PrimKind::Sphere => self.sphere_obj[i],
-            PrimKind::Triangle => self.triangle_obj[i],
+            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangle_obj[i],
             PrimKind::Quadric => self.quadric_obj[i],
             PrimKind::FreeQuadric => self.free_quadric_obj[i],
             PrimKind::Floor => u32::MAX,
@@ -381,6 +397,10 @@ impl PrimSet {
                     let (m, t, u, v) = self.triangles[i].intersect_x8(r, active, hit.t);
                     self.record_x8(hit, m, t, (u, v), code);
                 }
+                PrimKind::TriangleMoller => {
+                    let (m, t, u, v) = moller::intersect_x8(&self.triangles[i], r, active, hit.t);
+                    self.record_x8(hit, m, t, (u, v), code);
+                }
                 PrimKind::Quadric => {
                     let (m, t) = self.quadrics[i].intersect_x8(r, active, hit.t);
                     self.record_x8(hit, m, t, zero, code);
@@ -419,6 +439,7 @@ impl PrimSet {
             let m = match kind {
                 PrimKind::Sphere => self.spheres[i].occluded_x8(r, left, t_max),
                 PrimKind::Triangle => self.triangles[i].occluded_x8(r, left, t_max),
+                PrimKind::TriangleMoller => moller::occluded_x8(&self.triangles[i], r, left, t_max),
                 PrimKind::Quadric => self.quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::FreeQuadric => self.free_quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::Floor => match &self.floor {
@@ -454,6 +475,11 @@ impl PrimSet {
                 }
                 PrimKind::Triangle => {
                     if let Some((t, u, v)) = self.triangles[i].intersect_1(r, hit.t) {
+                        self.record_1(hit, t, u, v, code);
+                    }
+                }
+                PrimKind::TriangleMoller => {
+                    if let Some((t, u, v)) = moller::intersect_1(&self.triangles[i], r, hit.t) {
                         self.record_1(hit, t, u, v, code);
                     }
                 }
@@ -496,6 +522,7 @@ impl PrimSet {
         (first..first + count).any(|i| match kind {
             PrimKind::Sphere => self.spheres[i].occluded_1(r, t_max),
             PrimKind::Triangle => self.triangles[i].occluded_1(r, t_max),
+            PrimKind::TriangleMoller => moller::occluded_1(&self.triangles[i], r, t_max),
             PrimKind::Quadric => self.quadrics[i].occluded_1(r, t_max),
             PrimKind::FreeQuadric => self.free_quadrics[i].occluded_1(r, t_max),
             PrimKind::Floor => self.floor.is_some_and(|f| f.occluded_1(r, t_max)),
@@ -507,7 +534,7 @@ impl PrimSet {
         let (kind, i) = split_code(code);
         match kind {
             PrimKind::Sphere => self.spheres[i].surface_1(r, t),
-            PrimKind::Triangle => self.triangles[i].surface_1(u, v),
+            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].surface_1(u, v),
             PrimKind::Quadric => self.quadrics[i].surface_1(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_1(r, t),
             PrimKind::Floor => self.floor.expect("floor hit").surface_1(r, t),

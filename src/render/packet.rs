@@ -182,7 +182,20 @@ impl PacketRenderer {
     /// [`PacketRenderer::new`]; `caustic` sets the photon count, radius and seed of the
     /// photon pass, which runs here (through this BVH) only if the scene has glass.
     pub fn with_caustics(scene: &Scene, base: DVec3, caustic: &CausticSettings) -> PacketRenderer {
-        let prims = PrimSet::from_scene(scene, base);
+        Self::with_options(scene, base, caustic, false)
+    }
+
+    /// [`PacketRenderer::with_caustics`]; `moller` picks the plain Möller–Trumbore
+    /// triangle test for every triangle (profile knob `triangle_test = "moller"`),
+    /// instead of the watertight one.
+    pub fn with_options(
+        scene: &Scene,
+        base: DVec3,
+        caustic: &CausticSettings,
+        moller: bool,
+    ) -> PacketRenderer {
+        let mut prims = PrimSet::from_scene(scene, base);
+        prims.moller = moller;
         let bvh = Bvh::build(prims);
         let rel = |p: DVec3| (p - base).as_vec3();
         let points = scene.point_lights.iter().map(|l| Light32 {

@@ -24,7 +24,7 @@ use wide::f32x8;
 use super::caustic::CausticSettings;
 use super::frame::render_bands;
 use super::packet::{BAND_ROWS, PacketRenderer};
-use super::profile::{Profile, RayOffset, RenderPath};
+use super::profile::{Profile, RayOffset, RenderPath, TriangleTest};
 use super::reference::Reference;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::Steps;
@@ -98,15 +98,16 @@ impl<'a> Prepared<'a> {
                 photons: self.profile.photons,
                 ..CausticSettings::default()
             };
+            let moller = self.profile.triangle_test == TriangleTest::Moller;
             let mut r = match self.profile.max_recursion {
                 Some(cap) if cap < self.scene.recursion_level => {
                     let capped = Scene {
                         recursion_level: cap,
                         ..self.scene.clone()
                     };
-                    PacketRenderer::with_caustics(&capped, eye, &caustic)
+                    PacketRenderer::with_options(&capped, eye, &caustic, moller)
                 }
-                _ => PacketRenderer::with_caustics(self.scene, eye, &caustic),
+                _ => PacketRenderer::with_options(self.scene, eye, &caustic, moller),
             };
             r.fallback_lanes = self.profile.single_ray_lanes;
             r.shadow_any_hit = self.profile.shadow_any_hit;

@@ -241,23 +241,6 @@ impl Profile {
     /// Parses profile `name` from TOML `text`; `file` names it in errors.
     pub fn from_toml(name: &str, text: &str, file: &str) -> Result<Profile, ProfileError> {
         let f: ProfileFile = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
-        // Knobs in the schema that the packet path does not implement yet: only their
-        // defaults are accepted, so no profile claims a setting that does nothing.
-        let not_wired = [(
-            "triangle_test",
-            f.triangle_test
-                .is_some_and(|t| t != TriangleTest::Watertight),
-        )];
-        if let Some((key, _)) = not_wired.iter().find(|(_, set)| *set) {
-            let (line, column) = key_position(text, key);
-            return Err(ProfileError::Syntax {
-                file: file.to_string(),
-                line,
-                column,
-                key: Some(key.to_string()),
-                message: "not implemented yet: only the default value is accepted".into(),
-            });
-        }
         Ok(Profile {
             name: name.to_string(),
             path: f.path.unwrap_or(RenderPath::Packet),
@@ -294,20 +277,6 @@ impl Profile {
     pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
         self.prepare(scene).render(settings)
     }
-}
-
-/// Line and column (1-based) of the line that sets `key` (1:1 if none does).
-fn key_position(text: &str, key: &str) -> (usize, usize) {
-    text.lines()
-        .enumerate()
-        .find_map(|(i, l)| {
-            let t = l.trim_start();
-            let rest = t.strip_prefix(key)?;
-            rest.trim_start()
-                .starts_with('=')
-                .then(|| (i + 1, l.len() - t.len() + 1))
-        })
-        .unwrap_or((1, 1))
 }
 
 /// A TOML error as `file:line:column`, with the key on that line.
