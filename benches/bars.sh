@@ -31,6 +31,11 @@ if command -v povray >/dev/null; then
     "povray +I$pov/assignment_scene.pov +O$tmp/pov.png +FN +W768 +H768 -A +WT2 -D File_Gamma=1.0 Declare=RL=4" \
     "$o render $pov/assignment_scene.txt --size 768 --eye 100,100,50 --look-at 0,0,0 --threads 2 -o $tmp/o.bmp"
   cat "$tmp/pov.md"
+  # issue 6: the prism scene against POV-Ray's photon-mapped prism, 768², 2 threads each
+  hyperfine -w 1 -r 3 --export-markdown "$tmp/prism.md" \
+    "povray +I$pov/prism_dispersion.pov +O$tmp/povprism.png +FN +W768 +H768 -A +WT2 -D -GA File_Gamma=1.0" \
+    "$o render scenes/prism_povray.txt --eye 10,-110,95 --look-at 30,0,8 --fov 60 --size 768 --threads 2 -o $tmp/op.png"
+  cat "$tmp/prism.md"
 fi
 # 2 threads vs 1 on a 4K frame (render time reported by octaray itself, then whole process)
 for t in 1 2 1 2; do "$o" render --size 3840x2160 --threads $t -o "$tmp/4k.bmp"; done
