@@ -1,5 +1,6 @@
 //! The finished picture and how it reaches the disk.
 
+pub mod bmp;
 pub mod framebuffer;
 pub mod write;
 

@@ -48,6 +48,18 @@ fn write_temp(fb: &Framebuffer, path: &Path) -> Result<PathBuf, OutputError> {
         .map_or_else(|| "image".into(), |n| n.to_string_lossy().into_owned());
     let tmp_name = format!(".{name}.tmp-{}", std::process::id());
     let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
+    if format == ImageFormat::Bmp {
+        return match fs::write(&tmp, super::bmp::encode(fb)) {
+            Ok(()) => Ok(tmp),
+            Err(source) => {
+                let _ = fs::remove_file(&tmp);
+                Err(OutputError::Io {
+                    path: path.display().to_string(),
+                    source,
+                })
+            }
+        };
+    }
     let result = image::save_buffer_with_format(
         &tmp,
         fb.as_bytes(),
