@@ -65,8 +65,10 @@ pub const BAND_ROWS: u32 = 4;
 // benches/README.md.
 pub const FALLBACK_LANES: u32 = 1;
 
-/// The mirror chain of a packet: per level the local colour, kr and the lanes that hit.
-pub type Chain = Vec<(Vec3x8, f32x8, Mask8)>;
+/// The mirror chain of a packet: per level the local colour, the weight of the next
+/// level's colour (kr; per channel for glass, whose reflection weight depends on the
+/// wavelength) and the lanes that hit.
+pub type Chain = Vec<(Vec3x8, Vec3x8, Mask8)>;
 
 /// Shading parameters of one object, in f32.
 #[derive(Clone, Copy, Debug)]
@@ -502,8 +504,9 @@ impl PacketRenderer {
 
     /// The colours along a packet traced from `path.level` on: the mirror chain in a
     /// loop, per-level clamping folded back from the deepest level. In glass scenes a
-    /// glass lane ends the chain: [`glass`] traces what it reflects and transmits one
-    /// level deeper (recursively) and returns the lane's whole clamped colour.
+    /// glass lane's heavier branch goes on in the loop (an RGB lane's reflection,
+    /// weighted per channel; a monochromatic lane's heavier ray) and [`glass`] traces the
+    /// others one level deeper, nested.
     fn trace_path<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
         &self,
         camera: &RayPacket8,
@@ -527,26 +530,43 @@ impl PacketRenderer {
             let g = self.gather(&ray, &hit, lanes);
             let mut local = self.phong::<ANY_HIT, EPS>(&g, -ray.dir, lanes, stats, steps);
             let mut kr = g.kr;
+            // glass lanes' per-channel weight of the next level (RGB lanes)
+            let mut tint: Option<Vec3x8> = None;
+            // glass lanes that go on in this loop: their direction and whether they
+            // were refracted (monochromatic lanes follow their heavier branch here)
+            let mut turn: Option<(Mask8, Vec3x8, Mask8)> = None;
             if GLASS {
                 let glass = self.glass_lanes(&hit, lanes);
                 local = self.add_caustic(&g, lanes.and_not(glass), local);
                 if glass.any() {
+                    // (at the last level a glass lane keeps only its Phong colour)
+                    kr = glass.select(f32x8::ZERO, kr);
                     if level < self.recursion_level {
                         let here = PathState {
                             level,
                             weight,
                             ..*path
                         };
-                        let split = self.split_at_glass::<ANY_HIT, EPS>(
-                            &ray, &hit, &g, glass, &here, stats, steps,
-                        );
-                        local = local + split;
+                        if path.lambda.is_none() {
+                            // RGB: the reflection goes on here, weighted per channel
+                            let (side, w) = self.split_rgb::<ANY_HIT, EPS>(
+                                &ray, &hit, &g, glass, &here, stats, steps,
+                            );
+                            local = local + side;
+                            kr = glass.select(w.x.max(w.y).max(w.z), kr);
+                            tint = Some(Vec3x8::select(glass, w, Vec3x8::new(kr, kr, kr)));
+                        } else {
+                            let m = self.split_mono::<ANY_HIT, EPS>(
+                                &ray, &hit, &g, glass, &here, stats, steps,
+                            );
+                            local = local + m.side;
+                            kr = glass.select(m.main_weight, kr);
+                            turn = Some((glass, m.main_dir, m.refracted));
+                        }
                     }
-                    // the glass lanes' colour is whole: nothing deeper adds to it
-                    kr = glass.select(f32x8::ZERO, kr);
                 }
             }
-            chain.push((local, kr, lanes));
+            chain.push((local, tint.unwrap_or(Vec3x8::new(kr, kr, kr)), lanes));
             // level N gives N − 1 bounces; kr = 0 would add exactly nothing
             if level >= self.recursion_level {
                 break;
@@ -557,11 +577,17 @@ impl PacketRenderer {
             }
             let n = g.normal;
             let d = ray.dir - n * (f32x8::splat(2.0) * ray.dir.dot(n));
-            let d = d * (f32x8::splat(1.0) / d.length());
+            let mut d = d * (f32x8::splat(1.0) / d.length());
+            let mut refracted = Mask8::NONE;
+            if let Some((glass, main_dir, t)) = turn {
+                d = Vec3x8::select(glass, main_dir, d);
+                refracted = next & t;
+            }
             let o = self.leave::<EPS>(g.point, g.err, n, d);
             ray = RayPacket8::new(o, d, next);
             active = next;
-            stats.reflection_rays += next.count() as u64;
+            stats.reflection_rays += next.and_not(refracted).count() as u64;
+            stats.refraction_rays += refracted.count() as u64;
             level += 1;
             if GLASS {
                 weight *= kr;

@@ -9,15 +9,18 @@
 //! direction, so they are traced as two coherent packets of 8 monochromatic lanes.
 //! Its reflected ray (one direction for every wavelength, weighted by the mean of
 //! kr + kt·F) stays RGB and is traced with the other RGB glass lanes of the packet, in
-//! their own lanes. A monochromatic lane splits into one reflected and one transmitted
-//! ray (Fresnel at its own n(λ)), batched with the other lanes' into packets of 8.
+//! their own lanes; the RGB lanes' colour is then whole and they leave the mirror
+//! chain. A monochromatic lane splits into one reflected and one transmitted ray
+//! (Fresnel at its own n(λ)); as in the reference, the heavier goes on in the packet's
+//! loop (light trapped by total internal reflection bounces there at constant stack,
+//! up to the recursion level) and the lighter is traced nested, lanes in place.
 //!
 //! Pruning as the reference: a branch whose colour could add at most
-//! [`GLASS_CUTOFF`] to the pixel is not traced. Unlike the reference, which follows the
-//! heavier branch of each split in a loop, every branch here nests one level of
-//! recursion, so [`MAX_GLASS_DEPTH`] bounds both branches (the reference bounds only the
-//! lighter one): the two differ only for light trapped by more than 64 glass
-//! interactions that each keep more than 1/2048 of it.
+//! [`GLASS_CUTOFF`] to the pixel is not traced, and [`MAX_GLASS_DEPTH`] bounds the
+//! nested branchings. The one difference: the reference follows an RGB lane's
+//! reflection in its loop, this path nests it, so it is bounded by
+//! [`MAX_GLASS_DEPTH`] too (a difference only for more than 64 glass reflections in a
+//! row that each keep more than 1/2048 of the light: glass with kr near 1).
 //!
 //! Non-glass surfaces add the caustic (`kd · c ⊙ E`, [`CausticMap::irradiance`]), whose
 //! photons this renderer traces through its own BVH ([`PhotonTracer`] below).
@@ -75,6 +78,18 @@ fn interface_x8(d: Vec3x8, n_out: Vec3x8, n_glass: f32x8) -> Interface8 {
     }
 }
 
+/// What [`PacketRenderer::split_mono`] leaves to the caller's loop.
+pub(super) struct MonoSplit {
+    /// The lighter branch's weighted colour (zero where it was not traced).
+    pub side: Vec3x8,
+    /// The heavier branch's direction ...
+    pub main_dir: Vec3x8,
+    /// ... and weight (0 where it stops: nothing more than the cutoff to add).
+    pub main_weight: f32x8,
+    /// Lanes whose heavier branch is the refracted ray.
+    pub refracted: Mask8,
+}
+
 impl PacketRenderer {
     /// Lanes of `lanes` whose hit is a glass object.
     pub(super) fn glass_lanes(&self, hit: &HitPacket8, lanes: Mask8) -> Mask8 {
@@ -117,11 +132,13 @@ impl PacketRenderer {
         }
     }
 
-    /// What the glass lanes of a packet reflect and transmit, traced at `path.level + 1`
-    /// and weighted (zero in the other lanes). The caller adds it to the lanes' Phong
-    /// colour and ends their mirror chain.
+    /// The glass lanes of a packet of RGB rays: what they transmit, split into their
+    /// pixel's wavelengths and traced at `path.level + 1` (weighted; zero in the other
+    /// lanes), and the per-channel weight of their reflection (the mean of kr + kt·F
+    /// over the wavelengths; zero where it could add no more than the cutoff), which
+    /// the caller's loop follows like a mirror ray.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn split_at_glass<const ANY_HIT: bool, const EPS: bool>(
+    pub(super) fn split_rgb<const ANY_HIT: bool, const EPS: bool>(
         &self,
         ray: &RayPacket8,
         hit: &HitPacket8,
@@ -130,23 +147,8 @@ impl PacketRenderer {
         path: &PathState,
         stats: &mut RenderStats,
         steps: &mut Steps,
-    ) -> Vec3x8 {
-        // per lane: kr, kt and Cauchy's a and b of the glass it hit
-        let mut k = [[0.0f32; 8]; 4];
-        let mut bits = glass.bits();
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let object = self.bvh.prims.object(hit.prim_lane(i)) as usize;
-            if let Some(gl) = self.glass[object] {
-                let m = &self.materials[object];
-                k[0][i] = m.kr;
-                k[1][i] = gl.kt as f32;
-                k[2][i] = gl.cauchy_a as f32;
-                k[3][i] = gl.cauchy_b as f32;
-            }
-        }
-        let [kr, kt, ca, cb] = k.map(f32x8::new);
+    ) -> (Vec3x8, Vec3x8) {
+        let [kr, kt, ca, cb] = self.glass_params(hit, glass);
         let outward = Vec3x8::select(g.flipped, -g.normal, g.normal);
         let cutoff = f32x8::splat(GLASS_CUTOFF as f32);
         let nest = path.depth < MAX_GLASS_DEPTH;
@@ -157,122 +159,147 @@ impl PacketRenderer {
             depth: path.depth + 1,
             pixel: path.pixel,
         };
-        let zero = f32x8::ZERO;
-        match path.lambda {
-            None => {
-                // RGB meets glass: the transmitted light splits into the pixel's
-                // wavelengths, two packets of eight per lane; the reflected ray (one
-                // direction for every wavelength) stays RGB, in its lane
-                let mut out = [Vec3::ZERO; 8];
-                let mut reflect_weight = [Vec3::ZERO; 8];
-                let (kr, kt, ca, cb) = (kr.to_array(), kt.to_array(), ca.to_array(), cb.to_array());
-                let w = path.weight.to_array();
-                let mut bits = glass.bits();
-                while bits != 0 {
-                    let i = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let (x, y) = (path.pixel[0] + i as u32 % 4, path.pixel[1] + i as u32 / 4);
-                    let wl = Wavelengths::for_pixel(x, y, self.seed);
-                    // one bound for every wavelength of the pixel (as the reference)
-                    let reach_w = wl
-                        .weight
-                        .iter()
-                        .map(|w| w.max_element())
-                        .fold(0.0, f64::max) as f32;
-                    let splat = |v: Vec3x8| Vec3x8::splat(v.lane(i));
-                    let (p, err, n_out, d) =
-                        (splat(g.point), splat(g.err), splat(outward), splat(ray.dir));
-                    for half in 0..CAMERA_SAMPLES / 8 {
-                        let lambda: [f32; 8] =
-                            std::array::from_fn(|j| wl.lambda[half * 8 + j] as f32);
-                        let um = f32x8::new(lambda) * f32x8::splat(1e-3);
-                        let n_glass = f32x8::splat(ca[i]) + f32x8::splat(cb[i]) / (um * um);
-                        let f = interface_x8(d, n_out, n_glass);
-                        let fresnel = f.fresnel.to_array();
-                        let wt = f32x8::splat(kt[i]) * (f32x8::splat(1.0) - f.fresnel);
-                        let reach = f32x8::splat(w[i] * reach_w) * wt;
-                        let wt = wt.to_array();
-                        let weights = &wl.weight[half * 8..half * 8 + 8];
-                        for (wk, fj) in weights.iter().zip(fresnel) {
-                            reflect_weight[i] += wk.as_vec3() * (kr[i] + kt[i] * fj);
-                        }
-                        let go = f.refracts & reach.gt(cutoff);
-                        if !nest || go.none() {
-                            continue;
-                        }
-                        let o = self.leave::<EPS>(p, err, n_out, f.transmitted);
-                        let packet = RayPacket8::new(o, f.transmitted, go);
-                        stats.refraction_rays += go.count() as u64;
-                        let c = self.trace_deeper::<ANY_HIT, EPS>(
-                            &packet,
-                            go,
-                            &deeper(Some(lambda), reach),
-                            stats,
-                            steps,
-                        );
-                        for (j, (wk, wtj)) in weights.iter().zip(wt).enumerate() {
-                            if go.lane(j) {
-                                out[i] += wk.as_vec3() * wtj * c.lane(j);
-                            }
-                        }
-                    }
-                }
-                // the reflected rays of the RGB lanes, in their own lanes
-                let rw = Vec3x8::from_lanes(&reflect_weight);
-                let wr = path.weight * rw.x.max(rw.y).max(rw.z);
-                let go = glass & wr.gt(cutoff);
-                let mut out = Vec3x8::from_lanes(&out);
-                if nest && go.any() {
-                    let d = ray.dir - outward * (f32x8::splat(2.0) * ray.dir.dot(outward));
-                    let d = d * (f32x8::splat(1.0) / d.length());
-                    let o = self.leave::<EPS>(g.point, g.err, outward, d);
-                    let packet = RayPacket8::new(o, d, go);
-                    stats.reflection_rays += go.count() as u64;
-                    let c = self.trace_deeper::<ANY_HIT, EPS>(
-                        &packet,
-                        go,
-                        &deeper(None, wr),
-                        stats,
-                        steps,
-                    );
-                    out = out + Vec3x8::select(go, rw * c, Vec3x8::ZERO);
-                }
-                out
-            }
-            Some(lambda) => {
-                // monochromatic lanes: one reflected and one transmitted packet, each
-                // lane at its own wavelength
+        // RGB meets glass: the transmitted light splits into the pixel's
+        // wavelengths, two packets of eight per lane; the reflected ray (one
+        // direction for every wavelength) stays RGB, in its lane
+        let mut out = [Vec3::ZERO; 8];
+        let mut reflect_weight = [Vec3::ZERO; 8];
+        let (kr, kt, ca, cb) = (kr.to_array(), kt.to_array(), ca.to_array(), cb.to_array());
+        let w = path.weight.to_array();
+        let mut bits = glass.bits();
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (x, y) = (path.pixel[0] + i as u32 % 4, path.pixel[1] + i as u32 / 4);
+            let wl = Wavelengths::for_pixel(x, y, self.seed);
+            // one bound for every wavelength of the pixel (as the reference)
+            let reach_w = wl
+                .weight
+                .iter()
+                .map(|w| w.max_element())
+                .fold(0.0, f64::max) as f32;
+            let splat = |v: Vec3x8| Vec3x8::splat(v.lane(i));
+            let (p, err, n_out, d) = (splat(g.point), splat(g.err), splat(outward), splat(ray.dir));
+            for half in 0..CAMERA_SAMPLES / 8 {
+                let lambda: [f32; 8] = std::array::from_fn(|j| wl.lambda[half * 8 + j] as f32);
                 let um = f32x8::new(lambda) * f32x8::splat(1e-3);
-                let f = interface_x8(ray.dir, outward, ca + cb / (um * um));
-                let wr = kr + kt * f.fresnel;
-                let wt = kt * (f32x8::splat(1.0) - f.fresnel);
-                let mut out = Vec3x8::ZERO;
-                if !nest {
-                    return out;
+                let n_glass = f32x8::splat(ca[i]) + f32x8::splat(cb[i]) / (um * um);
+                let f = interface_x8(d, n_out, n_glass);
+                let fresnel = f.fresnel.to_array();
+                let wt = f32x8::splat(kt[i]) * (f32x8::splat(1.0) - f.fresnel);
+                let reach = f32x8::splat(w[i] * reach_w) * wt;
+                let wt = wt.to_array();
+                let weights = &wl.weight[half * 8..half * 8 + 8];
+                for (wk, fj) in weights.iter().zip(fresnel) {
+                    reflect_weight[i] += wk.as_vec3() * (kr[i] + kt[i] * fj);
                 }
-                let go_r = glass & (path.weight * wr).gt(cutoff);
-                let go_t = glass & f.refracts & wt.gt(zero) & (path.weight * wt).gt(cutoff);
-                for (go, d, weight, transmitted) in [
-                    (go_r, f.reflected, wr, false),
-                    (go_t, f.transmitted, wt, true),
-                ] {
-                    if go.none() {
-                        continue;
-                    }
-                    let o = self.leave::<EPS>(g.point, g.err, outward, d);
-                    let packet = RayPacket8::new(o, d, go);
-                    if transmitted {
-                        stats.refraction_rays += go.count() as u64;
-                    } else {
-                        stats.reflection_rays += go.count() as u64;
-                    }
-                    let next = deeper(Some(lambda), path.weight * weight);
-                    let c = self.trace_deeper::<ANY_HIT, EPS>(&packet, go, &next, stats, steps);
-                    out = out + Vec3x8::select(go, c * weight, Vec3x8::ZERO);
+                let go = f.refracts & reach.gt(cutoff);
+                if !nest || go.none() {
+                    continue;
                 }
-                out
+                let o = self.leave::<EPS>(p, err, n_out, f.transmitted);
+                let packet = RayPacket8::new(o, f.transmitted, go);
+                stats.refraction_rays += go.count() as u64;
+                let c = self.trace_deeper::<ANY_HIT, EPS>(
+                    &packet,
+                    go,
+                    &deeper(Some(lambda), reach),
+                    stats,
+                    steps,
+                );
+                for (j, (wk, wtj)) in weights.iter().zip(wt).enumerate() {
+                    if go.lane(j) {
+                        out[i] += wk.as_vec3() * wtj * c.lane(j);
+                    }
+                }
             }
         }
+        // the reflection goes on in the caller's loop where it can still add anything
+        let rw = Vec3x8::from_lanes(&reflect_weight);
+        let goes_on = glass & (path.weight * rw.x.max(rw.y).max(rw.z)).gt(cutoff);
+        (
+            Vec3x8::from_lanes(&out),
+            Vec3x8::select(goes_on, rw, Vec3x8::ZERO),
+        )
+    }
+
+    /// Monochromatic glass lanes (each at its own n(λ)) split into a reflected and a
+    /// transmitted ray, as in the reference: the heavier goes on in the caller's loop
+    /// (returned), the lighter is traced here one level deeper, nested, if it could add
+    /// more than [`GLASS_CUTOFF`] and fewer than [`MAX_GLASS_DEPTH`] branchings are
+    /// nested already. Light kept by total internal reflection therefore bounces in
+    /// the loop, at constant stack, up to the scene's recursion level.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn split_mono<const ANY_HIT: bool, const EPS: bool>(
+        &self,
+        ray: &RayPacket8,
+        hit: &HitPacket8,
+        g: &Gathered,
+        glass: Mask8,
+        path: &PathState,
+        stats: &mut RenderStats,
+        steps: &mut Steps,
+    ) -> MonoSplit {
+        let [kr, kt, ca, cb] = self.glass_params(hit, glass);
+        let lambda = path.lambda.unwrap_or([0.0; 8]);
+        let outward = Vec3x8::select(g.flipped, -g.normal, g.normal);
+        let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
+        let cutoff = f32x8::splat(GLASS_CUTOFF as f32);
+        let um = f32x8::new(lambda) * f32x8::splat(1e-3);
+        let f = interface_x8(ray.dir, outward, ca + cb / (um * um));
+        let wr = kr + kt * f.fresnel;
+        let wt = f.refracts.select(kt * (one - f.fresnel), zero);
+        let both = f.refracts & wt.gt(zero);
+        // the heavier branch goes on (ties: the transmitted one, as the reference)
+        let t_main = both & wt.ge(wr);
+        let main_dir = Vec3x8::select(t_main, f.transmitted, f.reflected);
+        let main_weight = t_main.select(wt, wr);
+        let other_dir = Vec3x8::select(t_main, f.reflected, f.transmitted);
+        let other_weight = t_main.select(wr, wt);
+        let mut side = Vec3x8::ZERO;
+        let go = glass & both & (path.weight * other_weight).gt(cutoff);
+        if go.any() && path.depth < MAX_GLASS_DEPTH {
+            let o = self.leave::<EPS>(g.point, g.err, outward, other_dir);
+            let packet = RayPacket8::new(o, other_dir, go);
+            let refracted = go.and_not(t_main);
+            stats.refraction_rays += refracted.count() as u64;
+            stats.reflection_rays += go.and_not(refracted).count() as u64;
+            let next = PathState {
+                level: path.level + 1,
+                lambda: path.lambda,
+                weight: path.weight * other_weight,
+                depth: path.depth + 1,
+                pixel: path.pixel,
+            };
+            let c = self.trace_deeper::<ANY_HIT, EPS>(&packet, go, &next, stats, steps);
+            side = Vec3x8::select(go, c * other_weight, Vec3x8::ZERO);
+        }
+        // the main branch stops where it could add no more than the cutoff
+        let goes_on = glass & (path.weight * main_weight).gt(cutoff);
+        MonoSplit {
+            side,
+            main_dir,
+            main_weight: goes_on.select(main_weight, zero),
+            refracted: t_main,
+        }
+    }
+
+    /// Per lane of `glass`: kr, kt and Cauchy's a and b of the glass it hit.
+    fn glass_params(&self, hit: &HitPacket8, glass: Mask8) -> [f32x8; 4] {
+        let mut k = [[0.0f32; 8]; 4];
+        let mut bits = glass.bits();
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let object = self.bvh.prims.object(hit.prim_lane(i)) as usize;
+            if let Some(gl) = self.glass[object] {
+                k[0][i] = self.materials[object].kr;
+                k[1][i] = gl.kt as f32;
+                k[2][i] = gl.cauchy_a as f32;
+                k[3][i] = gl.cauchy_b as f32;
+            }
+        }
+        k.map(f32x8::new)
     }
 
     /// [`PacketRenderer::trace_path`] of a packet spawned at glass, with a mirror chain
