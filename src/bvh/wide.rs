@@ -404,7 +404,7 @@ fn huge_pages<T: Copy>(v: Vec<T>) -> Vec<T> {
 
 /// Prefetches every cache line of `*p` (no-op off x86-64).
 #[inline(always)]
-fn prefetch_lines<T>(p: &T) {
+pub(super) fn prefetch_lines<T>(p: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
