@@ -13,7 +13,7 @@
 use wide::f32x8;
 
 use super::node::BvhNode;
-use super::wide_x8::{FRUSTUM_SPREAD, finite_lanes, shared_octant};
+use super::wide_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
 use super::{Bvh, STACK_SIZE, Steps};
 use crate::geometry::PrimKind;
 use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, RayPacket8};
@@ -112,12 +112,24 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        self.intersect_x8_spread(r, active, FRUSTUM_SPREAD, hit, steps);
+        self.intersect_x8_spread(r, active, self.frustum_spread(), hit, steps);
+    }
+
+    /// The coherence limit of the wide packet walk in this tree: [`FRUSTUM_SPREAD`], or
+    /// −1 (never) for a tree of fewer than [`WIDE_PACKET_MIN_NODES`] wide nodes, where
+    /// building the frustum costs more than the few binary steps it saves.
+    #[inline]
+    fn frustum_spread(&self) -> f32 {
+        if self.wide.nodes.len() >= WIDE_PACKET_MIN_NODES {
+            FRUSTUM_SPREAD
+        } else {
+            -1.0
+        }
     }
 
     /// [`Bvh::intersect_x8`] with the coherence limit `spread` instead of
-    /// [`FRUSTUM_SPREAD`] (tests: ∞ sends every packet whose lanes share their signs
-    /// through the wide walk).
+    /// [`FRUSTUM_SPREAD`], whatever the tree's size (tests: ∞ sends every packet whose
+    /// lanes share their signs through the wide walk; a negative one none).
     pub fn intersect_x8_spread(
         &self,
         r: &RayPacket8,
@@ -129,7 +141,7 @@ impl Bvh {
         if active.none() {
             return;
         }
-        if !self.wide.nodes.is_empty() {
+        if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
             if let Some(oct) = shared_octant(r, act)
                 && self.intersect_x8_wide(r, act, oct, spread, hit, steps)
@@ -309,7 +321,7 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_spread(r, active, FRUSTUM_SPREAD, t_max, steps)
+        self.occluded_x8_spread(r, active, self.frustum_spread(), t_max, steps)
     }
 
     /// [`Bvh::occluded_x8`] with the coherence limit `spread` (as
@@ -322,7 +334,7 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        let wide_octant = if self.wide.nodes.is_empty() {
+        let wide_octant = if spread < 0.0 || self.wide.nodes.is_empty() {
             None
         } else {
             shared_octant(r, active & finite_lanes(r)).map(|oct| (oct, spread))
