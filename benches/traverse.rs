@@ -1,5 +1,6 @@
 //! BVH traversal of the standard torus100k: coherent (primary camera rays in 4 × 2
-//! packets) and incoherent rays, packet (`x8`) and single-ray (`1`) paths, 1 thread.
+//! packets) and incoherent rays, packet (`x8`: the 8-wide tree for coherent packets),
+//! binary packet (`x8b`) and single-ray (`1`) paths, 1 thread.
 //! Steps per ray (box and triangle tests) are printed once.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -33,7 +34,11 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("traverse");
     for (name, rays) in &sets {
         g.throughput(Throughput::Elements(rays.origin.len() as u64));
-        for (mode, tag) in [(Mode::Single, "1"), (Mode::Packet8, "x8")] {
+        for (mode, tag) in [
+            (Mode::Single, "1"),
+            (Mode::Packet8, "x8"),
+            (Mode::Packet8Binary, "x8b"),
+        ] {
             let mut t = vec![0.0f32; rays.origin.len()];
             let steps = pool.install(|| trace(&bvh, rays, mode, &mut t));
             let n = rays.origin.len() as f64;

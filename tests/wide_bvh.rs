@@ -10,17 +10,24 @@
 //! contract only orders objects, not primitives). Hit/miss must always agree. Any-hit
 //! must agree with closest-hit: `occluded_1(r, t_max)` iff `intersect_1` below t_max
 //! finds something.
+//!
+//! The packet walks (`Bvh::intersect_x8`/`occluded_x8`: the 8-wide tree for packets whose
+//! lanes share their direction signs, `wide_x8.rs`, the binary tree otherwise) are
+//! held to the same rules per lane against the binary single-ray walk, with inactive
+//! lanes (holding NaN) and active NaN lanes that must never hit.
 
 mod common;
 
 use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
+use octaray::bvh::wide_x8::FRUSTUM_SPREAD;
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
 use octaray::geometry::{Hit1, PrimKind, PrimSet, split_code};
-use octaray::math::packet::{Mask8, Ray1};
+use octaray::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use octaray::scene::{Object, Quadric, Scene, Shape};
+use wide::f32x8;
 
 #[derive(Debug, Default)]
 struct Tally {
@@ -448,4 +455,308 @@ fn kernel_1x8_equals_1x1_per_lane() {
         hits * 20 > lanes,
         "too few hits ({hits} of {lanes}) to test anything"
     );
+}
+
+/// Per-lane tally of the packet comparisons.
+#[derive(Debug, Default)]
+struct PacketTally {
+    lanes: usize,
+    hits: usize,
+    ties: usize,
+    edge: usize,
+    /// Packets whose active lanes share their direction signs (the wide packet walk).
+    one_octant: usize,
+    packets: usize,
+}
+
+/// The direction signs of a ray (bit k: 1/d < 0 on axis k).
+fn octant(r: &Ray1) -> u32 {
+    (0..3).map(|a| ((r.inv_dir[a] < 0.0) as u32) << a).sum()
+}
+
+/// Packets of `rays` in order, eight at a time; with `by_octant`, first sorted by
+/// direction signs (stable) so that most packets share them.
+fn packets_of(rays: &[Ray1], by_octant: bool) -> Vec<Vec<Ray1>> {
+    let mut rays = rays.to_vec();
+    if by_octant {
+        rays.sort_by_key(octant);
+    }
+    rays.chunks(8).map(|c| c.to_vec()).collect()
+}
+
+/// Packet walks against the binary single-ray walk, lane by lane: closest hit (the
+/// rules of `compare`) and any hit at random t_max, at each lane's hit and just past it.
+/// Lanes outside a random active mask hold NaN and must be left untouched; with
+/// `nan_lane`, one active lane of some packets is NaN and must miss.
+fn compare_packets(
+    name: &str,
+    bvh: &Bvh,
+    packets: &[Vec<Ray1>],
+    rng: &mut Rng,
+    nan_lane: bool,
+) -> (PacketTally, Steps, Steps) {
+    let mut out = (PacketTally::default(), Steps::default(), Steps::default());
+    // the packet walks as the renderer calls them, then every packet whose lanes share
+    // their signs forced through the wide walk (spread ∞), however incoherent
+    for spread in [FRUSTUM_SPREAD, f32::INFINITY] {
+        let name = format!("{name} (spread {spread})");
+        let r = compare_packets_at(&name, bvh, packets, rng, nan_lane, spread);
+        if spread == FRUSTUM_SPREAD {
+            out = r;
+        }
+    }
+    out
+}
+
+fn compare_packets_at(
+    name: &str,
+    bvh: &Bvh,
+    packets: &[Vec<Ray1>],
+    rng: &mut Rng,
+    nan_lane: bool,
+    spread: f32,
+) -> (PacketTally, Steps, Steps) {
+    let mut tally = PacketTally::default();
+    let (mut sx, mut sxb, mut sb) = (Steps::default(), Steps::default(), Steps::default());
+    for (pi, rays) in packets.iter().enumerate() {
+        tally.packets += 1;
+        // random active lanes in a third of the packets, all present lanes otherwise
+        let present = (1u32 << rays.len()) - 1;
+        let bits = if pi % 3 == 0 {
+            (rng.next_u64() as u32 & present).max(1 << (rays.len() - 1))
+        } else {
+            present
+        };
+        let mut o = [Vec3::NAN; 8];
+        let mut d = [Vec3::NAN; 8];
+        for (l, r) in rays.iter().enumerate() {
+            if bits >> l & 1 == 1 {
+                o[l] = r.origin;
+                d[l] = r.dir;
+            }
+        }
+        let mut nan = 0;
+        if nan_lane && pi % 4 == 1 && bits.count_ones() > 1 {
+            let l = bits.trailing_zeros() as usize;
+            o[l] = Vec3::new(f32::NAN, 0.0, 0.0);
+            nan = 1 << l;
+        }
+        let active = Mask8::from_bits(bits);
+        let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active);
+        let shared = (0..8)
+            .filter(|&l| bits >> l & 1 == 1 && nan >> l & 1 == 0)
+            .map(|l| octant(&rays[l]))
+            .collect::<Vec<_>>();
+        tally.one_octant += shared.windows(2).all(|w| w[0] == w[1]) as usize;
+        let t0 = f32x8::new(std::array::from_fn::<f32, 8, _>(|l| {
+            if l % 5 == 4 { 2.5 } else { f32::INFINITY }
+        }));
+        let mut hp = HitPacket8::new(t0);
+        bvh.intersect_x8_spread(&p, active, spread, &mut hp, &mut sx);
+        let mut hpb = HitPacket8::new(t0);
+        bvh.intersect_x8_binary(&p, active, &mut hpb, &mut sxb);
+        let t_occ = f32x8::new(std::array::from_fn::<f32, 8, _>(|_| {
+            rng.range(0.0, 3.0) as f32
+        }));
+        let occ = bvh.occluded_x8_spread(&p, active, spread, t_occ, &mut sx);
+        let (ht, hu, hv) = (hp.t.to_array(), hp.u.to_array(), hp.v.to_array());
+        let mut hit_t = [f32::INFINITY; 8];
+        for l in 0..8 {
+            if bits >> l & 1 == 0 {
+                assert!(
+                    hp.prim_lane(l) < 0 && ht[l] == t0.to_array()[l],
+                    "{name}: inactive lane {l} touched"
+                );
+                assert!(!occ.lane(l), "{name}: inactive lane {l} occluded");
+                continue;
+            }
+            if nan >> l & 1 == 1 {
+                assert!(
+                    hp.prim_lane(l) < 0 && !occ.lane(l),
+                    "{name}: NaN lane {l} hit"
+                );
+                continue;
+            }
+            tally.lanes += 1;
+            let r = p.ray(l);
+            let hx = Hit1 {
+                t: ht[l],
+                prim: hp.prim_lane(l),
+                u: hu[l],
+                v: hv[l],
+            };
+            let hb = closest(bvh, &r, t0.to_array()[l], false, &mut sb);
+            let ctx = format!("{name}: packet {pi} lane {l} {r:?}: packet {hx:?} vs binary {hb:?}");
+            assert_eq!(hx.is_hit(), hb.is_hit(), "{ctx}");
+            // the binary packet walk too (it serves packets of mixed signs)
+            assert_eq!(
+                hpb.prim_lane(l) >= 0,
+                hb.is_hit(),
+                "{ctx}: binary packet walk"
+            );
+            let mut edge_lane = false;
+            if hx.prim == hb.prim {
+                assert_eq!(
+                    (hx.t.to_bits(), hx.u.to_bits(), hx.v.to_bits()),
+                    (hb.t.to_bits(), hb.u.to_bits(), hb.v.to_bits()),
+                    "{ctx}"
+                );
+            } else if hx.is_hit()
+                && hx.t == hb.t
+                && bvh.prims.object(hx.prim) == bvh.prims.object(hb.prim)
+            {
+                tally.ties += 1;
+            } else {
+                assert!(at_edge(&hx) || at_edge(&hb), "{ctx}: not at an edge");
+                tally.edge += 1;
+                edge_lane = true;
+            }
+            tally.hits += hx.is_hit() as usize;
+            hit_t[l] = if hb.is_hit() {
+                hb.t
+            } else {
+                rng.range(0.0, 3.0) as f32
+            };
+            let ob = bvh.occluded_1_binary(&r, t_occ.to_array()[l], &mut sb);
+            assert!(
+                occ.lane(l) == ob || edge_lane || at_edge(&hb),
+                "{ctx}: occluded at {t_occ:?}"
+            );
+            tally.edge += (occ.lane(l) != ob && !edge_lane) as usize;
+        }
+        // any hit exactly at each lane's hit (nothing nearer: not occluded) and just past it
+        let live = Mask8::from_bits(bits & !nan);
+        for past in [false, true] {
+            let tm = f32x8::new(hit_t.map(|t| if past { t.next_up() } else { t }));
+            let occ = bvh.occluded_x8_spread(&p, live, spread, tm, &mut sx);
+            for l in 0..8 {
+                if live.lane(l) {
+                    let r = p.ray(l);
+                    let ob = bvh.occluded_1_binary(&r, tm.to_array()[l], &mut sb);
+                    let hb = closest(bvh, &r, f32::INFINITY, false, &mut sb);
+                    // (a clipped quadric's any-hit kernels, packet and single, decide
+                    // t == t_max within an ulp of each other, not bit for bit:
+                    // `tests/equiv_geometry.rs` holds them to a tolerance)
+                    let quadric = hb.is_hit() && split_code(hb.prim).0 == PrimKind::Quadric;
+                    assert!(
+                        occ.lane(l) == ob || at_edge(&hb) || quadric,
+                        "{name}: packet {pi} lane {l} {r:?}: occluded at {} (past {past}): packet {}, binary {ob}, hit {hb:?} ({:?})",
+                        tm.to_array()[l],
+                        occ.lane(l),
+                        split_code(hb.prim).0
+                    );
+                }
+            }
+        }
+    }
+    println!("{name}: {tally:?}, packet {sx:?}, binary packet {sxb:?}");
+    assert!(
+        tally.edge * 200 <= tally.lanes,
+        "{name}: too many edge differences: {tally:?}"
+    );
+    (tally, sx, sxb)
+}
+
+#[test]
+fn packet_walks_equal_binary_on_a_torus_coherent() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(21);
+    let packets = packets_of(&rays_of(&primary_rays(128, 128)), false);
+    let (t, sx, sxb) = compare_packets("packets primary", &bvh, &packets, &mut rng, true);
+    assert!(t.hits > t.lanes / 3, "{t:?}");
+    // camera packets share their direction signs but at the image's centre lines: the
+    // wide walk serves nearly all, with fewer (8-wide) node tests than the binary walk
+    assert!(t.one_octant * 10 >= t.packets * 9, "{t:?}");
+    assert!(sx.boxes < sxb.boxes, "wide {sx:?} vs binary {sxb:?}");
+}
+
+#[test]
+fn packet_walks_equal_binary_on_a_torus_incoherent() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(22);
+    let rays = rays_of(&incoherent_rays(16_000, 5));
+    // as they come (mixed signs: the binary packet walk) and grouped by signs (the
+    // wide walk with wide frustums)
+    for by_octant in [false, true] {
+        let packets = packets_of(&rays, by_octant);
+        let (t, _, _) = compare_packets("packets incoherent", &bvh, &packets, &mut rng, true);
+        assert!(t.hits > t.lanes / 3, "{t:?}");
+        if by_octant {
+            assert!(t.one_octant * 10 >= t.packets * 9, "{t:?}");
+        }
+    }
+}
+
+#[test]
+fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds() {
+    let tris = torus(96, 48);
+    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let mut rng = Rng(23);
+    let (lo, hi) = (Vec3::new(-2.0, -1.5, -2.0), Vec3::new(2.0, 1.5, 2.0));
+    let edges = edge_rays(&tris, 16_000, lo, hi, &mut rng);
+    let (t, _, _) = compare_packets(
+        "packets edges",
+        &bvh,
+        &packets_of(&edges, true),
+        &mut rng,
+        false,
+    );
+    assert!(t.hits * 10 >= t.lanes * 9, "{t:?}");
+    // rays aimed at points near one spot from one origin: coherent packets over edges
+    let spot: Vec<Ray1> = (0..8_000)
+        .map(|k| {
+            let tri = &tris[(k / 64 * 37) % tris.len()];
+            let o = Vec3::new(0.3, 2.0, 2.5);
+            let aim = tri.v[k % 3] + (tri.v[(k + 1) % 3] - tri.v[k % 3]) * ((k % 64) as f32 / 64.0);
+            Ray1::new(o, (aim - o).normalize())
+        })
+        .collect();
+    let (t, _, _) = compare_packets(
+        "packets spot edges",
+        &bvh,
+        &packets_of(&spot, false),
+        &mut rng,
+        true,
+    );
+    assert!(t.one_octant * 2 >= t.packets, "{t:?}");
+    let zeros = signed_zero_rays(Vec3::new(-1.6, -0.5, -1.6), Vec3::new(1.6, 0.5, 1.6), 40);
+    for by_octant in [false, true] {
+        let (t, _, _) = compare_packets(
+            "packets signed zeros",
+            &bvh,
+            &packets_of(&zeros, by_octant),
+            &mut rng,
+            false,
+        );
+        assert!(t.hits > t.lanes / 4, "{t:?}");
+    }
+    // every kind, exact ties between duplicated objects, the list beside the tree
+    let scene = mixed_scene();
+    let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
+    let (lo, hi) = (
+        Vec3::new(-100.0, -100.0, -20.0),
+        Vec3::new(80.0, 80.0, 50.0),
+    );
+    let mut rays: Vec<Ray1> = Vec::new();
+    for k in 0..12_000 {
+        let kind = PrimKind::BVH_KINDS[k % 3];
+        let p = &bvh.prims;
+        let b = p.bounds(kind, rng.next_u64() as usize % p.len(kind));
+        let o = Vec3::new(
+            rng.range(lo.x as f64, hi.x as f64) as f32,
+            rng.range(lo.y as f64, hi.y as f64) as f32,
+            hi.z,
+        );
+        rays.push(Ray1::new(o, (b.centroid() - o).normalize()));
+    }
+    rays.extend(edge_rays(&bvh.prims.triangles, 4_000, lo, hi, &mut rng));
+    let (t, sx, _) = compare_packets(
+        "packets mixed",
+        &bvh,
+        &packets_of(&rays, true),
+        &mut rng,
+        true,
+    );
+    assert!(t.hits > t.lanes / 3, "{t:?}");
+    assert!(sx.quadrics > 0, "{sx:?}");
 }

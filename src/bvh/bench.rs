@@ -2,8 +2,9 @@
 //! and the criterion benches: a triangle mesh from an OBJ file, 1024² coherent primary
 //! rays in 4 × 2 pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞),
 //! build best of 3 and trace best of 5, reported in the Embree harness's fields for
-//! the packet path (mode=8), the single-ray path (mode=1, the 8-wide tree collapsed
-//! from the same BVH) and the binary single-ray path (mode=1b) of the same BVH.
+//! the packet path (mode=8: the 8-wide tree collapsed from the same BVH, for packets
+//! whose lanes share their direction signs), the binary packet path (mode=8b), the
+//! single-ray path (mode=1, the 8-wide tree) and the binary single-ray path (mode=1b).
 
 use std::path::Path;
 use std::time::Instant;
@@ -110,15 +111,18 @@ pub enum Mode {
     Single,
     /// `Bvh::intersect_1_binary`, one ray at a time through the binary tree (`mode=1b`).
     SingleBinary,
-    /// `Bvh::intersect_x8`, 8 consecutive rays as one packet.
+    /// `Bvh::intersect_x8`, 8 consecutive rays as one packet (the 8-wide tree when the
+    /// lanes share their direction signs).
     Packet8,
+    /// `Bvh::intersect_x8_binary`, packets through the binary tree only (`mode=8b`).
+    Packet8Binary,
 }
 
 impl Mode {
     pub fn width(self) -> usize {
         match self {
             Mode::Single | Mode::SingleBinary => 1,
-            Mode::Packet8 => 8,
+            Mode::Packet8 | Mode::Packet8Binary => 8,
         }
     }
 
@@ -128,6 +132,7 @@ impl Mode {
             Mode::Single => "1",
             Mode::SingleBinary => "1b",
             Mode::Packet8 => "8",
+            Mode::Packet8Binary => "8b",
         }
     }
 }
@@ -158,7 +163,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                         *t = if h.is_hit() { h.t } else { -1.0 };
                     }
                 }
-                Mode::Packet8 => {
+                Mode::Packet8 | Mode::Packet8Binary => {
                     for (k, ts) in out.chunks_mut(8).enumerate() {
                         let b = base + k * 8;
                         let n = ts.len();
@@ -170,7 +175,11 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                         let p =
                             RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active);
                         let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
-                        bvh.intersect_x8(&p, active, &mut h, &mut steps);
+                        if mode == Mode::Packet8 {
+                            bvh.intersect_x8(&p, active, &mut h, &mut steps);
+                        } else {
+                            bvh.intersect_x8_binary(&p, active, &mut h, &mut steps);
+                        }
                         let t = h.t.to_array();
                         for (i, out) in ts.iter_mut().enumerate() {
                             *out = if h.prim_lane(i) >= 0 { t[i] } else { -1.0 };
@@ -308,8 +317,23 @@ pub fn run(
             lanes as f64 / w.blocks.len().max(1) as f64
         );
         let mut runs = Vec::new();
+        // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional): one line only,
+        // for profiling
+        let only = std::env::var("OCTARAY_BENCH_ONLY").unwrap_or_default();
+        let (only_rays, only_mode) = only.split_once('/').unwrap_or((&only, ""));
         for rays in [primary_rays(1024, 1024), incoherent_rays(1 << 20, 7)] {
-            for mode in [Mode::Packet8, Mode::Single, Mode::SingleBinary] {
+            if !only_rays.is_empty() && only_rays != rays.name {
+                continue;
+            }
+            for mode in [
+                Mode::Packet8,
+                Mode::Packet8Binary,
+                Mode::Single,
+                Mode::SingleBinary,
+            ] {
+                if !only_mode.is_empty() && only_mode != mode.label() {
+                    continue;
+                }
                 let (trace_ms, hits, mean_t, steps) = timed_trace(&bvh, &rays, mode, reps);
                 let n = rays.origin.len() as f64;
                 let run = TraceRun {
@@ -333,10 +357,10 @@ pub fn run(
                     run.rays,
                     mode.label(),
                     run.boxes_per_ray,
-                    if mode == Mode::Single {
-                        "wide node tests (8 boxes each)"
-                    } else {
-                        "box tests"
+                    match mode {
+                        Mode::Single => "wide node tests (8 boxes each)",
+                        Mode::Packet8 => "node tests (8-wide when the signs agree)",
+                        _ => "box tests",
                     },
                     run.prims_per_ray
                 );

@@ -20,6 +20,7 @@ pub mod traverse_1;
 pub mod traverse_x8;
 pub mod validate;
 pub mod wide;
+pub mod wide_x8;
 
 pub use node::{Aabb, BvhNode};
 

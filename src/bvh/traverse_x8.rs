@@ -13,6 +13,7 @@
 use wide::f32x8;
 
 use super::node::BvhNode;
+use super::wide_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
 use super::{Bvh, STACK_SIZE, Steps};
 use crate::geometry::PrimKind;
 use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, RayPacket8};
@@ -100,8 +101,61 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
 }
 
 impl Bvh {
-    /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in `hit`.
+    /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
+    /// `hit`. Coherent packets (lanes sharing their direction signs, within
+    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide_x8.rs`), the others the binary
+    /// tree ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        self.intersect_x8_spread(r, active, self.frustum_spread(), hit, steps);
+    }
+
+    /// The coherence limit of the wide packet walk in this tree: [`FRUSTUM_SPREAD`], or
+    /// −1 (never) for a tree of fewer than [`WIDE_PACKET_MIN_NODES`] wide nodes, where
+    /// building the frustum costs more than the few binary steps it saves.
+    #[inline]
+    fn frustum_spread(&self) -> f32 {
+        if self.wide.nodes.len() >= WIDE_PACKET_MIN_NODES {
+            FRUSTUM_SPREAD
+        } else {
+            -1.0
+        }
+    }
+
+    /// [`Bvh::intersect_x8`] with the coherence limit `spread` instead of
+    /// [`FRUSTUM_SPREAD`], whatever the tree's size (tests: ∞ sends every packet whose
+    /// lanes share their signs through the wide walk; a negative one none).
+    pub fn intersect_x8_spread(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        spread: f32,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        if active.none() {
+            return;
+        }
+        if spread >= 0.0 && !self.wide.nodes.is_empty() {
+            let act = active & finite_lanes(r);
+            if let Some(oct) = shared_octant(r, act)
+                && self.intersect_x8_wide(r, act, oct, spread, hit, steps)
+            {
+                self.intersect_beside_x8(r, active, hit, steps);
+                return;
+            }
+        }
+        self.intersect_x8_binary(r, active, hit, steps);
+    }
+
+    /// [`Bvh::intersect_x8`] through the binary tree only (every packet; the walk of
+    /// packets with mixed direction signs, and the benches' `mode=8b`).
+    pub fn intersect_x8_binary(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -258,12 +312,57 @@ impl Bvh {
     }
 
     /// The lanes of `active` whose ray is blocked by anything with 0 < t < t_max
-    /// (any hit: a lane leaves the query at its first blocker).
+    /// (any hit: a lane leaves the query at its first blocker). Coherent packets walk
+    /// the 8-wide tree, as in [`Bvh::intersect_x8`].
     pub fn occluded_x8(
         &self,
         r: &RayPacket8,
         active: Mask8,
         t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        self.occluded_x8_spread(r, active, self.frustum_spread(), t_max, steps)
+    }
+
+    /// [`Bvh::occluded_x8`] with the coherence limit `spread` (as
+    /// [`Bvh::intersect_x8_spread`]).
+    pub fn occluded_x8_spread(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        spread: f32,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let wide_octant = if spread < 0.0 || self.wide.nodes.is_empty() {
+            None
+        } else {
+            shared_octant(r, active & finite_lanes(r)).map(|oct| (oct, spread))
+        };
+        self.occluded_x8_with(r, active, t_max, wide_octant, steps)
+    }
+
+    /// [`Bvh::occluded_x8`] through the binary tree only.
+    pub fn occluded_x8_binary(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        self.occluded_x8_with(r, active, t_max, None, steps)
+    }
+
+    /// The any-hit query: the list beside the tree, then the wide tree when
+    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
+    /// packet is coherent enough, else the binary one.
+    #[inline(always)]
+    fn occluded_x8_with(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        wide_octant: Option<(u32, f32)>,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = active;
@@ -285,7 +384,14 @@ impl Bvh {
                         .occluded_x8(PrimKind::FreeQuadric, 0, nq, r, left, t_max),
                 );
         }
-        if !self.nodes.is_empty() && left.any() {
+        let wide = wide_octant
+            .filter(|_| left.any())
+            .and_then(|(oct, spread)| {
+                self.occluded_x8_wide(r, left & finite_lanes(r), oct, spread, t_max, steps)
+            });
+        if let Some(blocked) = wide {
+            left = left.and_not(blocked);
+        } else if !self.nodes.is_empty() && left.any() {
             let mut stack = [0u32; STACK_SIZE];
             let mut sp = 1;
             while sp > 0 {

@@ -46,8 +46,8 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 pub const MERGE_MAX: u32 = 16;
 
 /// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
-const INTERIOR: u32 = 0;
-const COUNT_MASK: u32 = (1 << 28) - 1;
+pub(super) const INTERIOR: u32 = 0;
+pub(super) const COUNT_MASK: u32 = (1 << 28) - 1;
 
 /// A node of the 8-wide tree. 256 B = four cache lines, 64-byte aligned.
 ///
@@ -101,7 +101,7 @@ pub struct WideBvh {
 
 /// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
 /// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
-const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
+pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
 
 /// Subtree summary of a binary node: one kind, contiguous primitives `first..first+count`.
 #[derive(Clone, Copy)]
@@ -266,7 +266,7 @@ impl WideBvh {
     /// the cache at once: the slab test reads the box lines, then the child or triangle
     /// lines, each a miss of its own on incoherent rays without this.
     #[inline(always)]
-    fn prefetch_children(&self, node: &WideNode, mut bits: u32) {
+    pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32) {
         while bits != 0 {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
@@ -404,7 +404,7 @@ fn huge_pages<T: Copy>(v: Vec<T>) -> Vec<T> {
 
 /// Prefetches every cache line of `*p` (no-op off x86-64).
 #[inline(always)]
-fn prefetch_lines<T>(p: &T) {
+pub(super) fn prefetch_lines<T>(p: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
@@ -428,7 +428,7 @@ fn finite(r: &Ray1) -> bool {
 
 /// A stack entry: slot `child` and `meta` packed (meta in the high half).
 #[inline]
-fn pack(child: u32, meta: u32) -> u64 {
+pub(super) fn pack(child: u32, meta: u32) -> u64 {
     child as u64 | (meta as u64) << 32
 }
 

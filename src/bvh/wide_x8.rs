@@ -1,0 +1,529 @@
+//! Packet traversal of the 8-wide tree for packets whose active lanes share their
+//! direction signs (nearly every camera and shadow packet), after Embree's coherent
+//! packet walk.
+//!
+//! The packet walks the tree as one "fat ray": a [`Frustum`] bounds every lane's slab
+//! distances by interval arithmetic over the lanes' origins and 1/d, so one 8-wide
+//! test per node (the eight slots at once, as for a single ray) says which children
+//! some lane may enter and gives a lower bound of their entry distances; the children
+//! are visited nearest first, and a popped subtree is skipped when that bound lies
+//! behind every active lane's nearest hit. Nothing is decided per lane above the
+//! leaves. In a leaf, the frustum test of a triangle block's per-lane binary leaf boxes
+//! picks the triangles to test; each is tested against the whole packet with the
+//! packet kernel ([`Triangle32::intersect_x8`], the binary packet walk's), and a lane's
+//! hit counts only when the lane also passes that triangle's binary leaf box (the
+//! single-ray wide walk's rule, see [`super::wide::TriBlock`]), so a lane reports what
+//! the binary walks report for it.
+//!
+//! Why the bound is exact enough to be safe: for one axis and plane p, lane i computes
+//! t_i = fl(fl(p − o_i) · r_i) (r = 1/d). Rounding is monotone, so with o_i in
+//! [o_lo, o_hi] and r_i in [r_lo, r_hi] of one sign, fl(p − o_i) lies between
+//! fl(p − o_hi) and fl(p − o_lo), and t_i between the rounded products of the interval
+//! ends; the frustum computes those ends with the same operations. Hence its entry
+//! bound is <= every lane's entry and its exit bound >= every lane's exit, and a box a
+//! lane meets is met by the frustum (superset of lanes, never fewer).
+//!
+//! Contract as `bvh/mod.rs`; lanes with a non-finite origin or 1/d skip the tree (as
+//! single rays do in `wide.rs`). Step counters: `boxes` counts wide node tests, `prims`
+//! the triangles tested (each against the packet).
+
+use std::mem::MaybeUninit;
+
+use wide::f32x8;
+
+use super::node::BvhNode;
+use super::wide::{
+    COUNT_MASK, INTERIOR, TriBlock, WIDE_STACK, WideBvh, WideNode, pack, prefetch_lines,
+};
+use super::{Bvh, Steps};
+use crate::geometry::triangle::Triangle32;
+use crate::geometry::{PrimKind, PrimSet, prim_code};
+use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8};
+
+/// Largest spread of a packet served by the wide packet walk (radians between lane
+/// directions; origins: this fraction of the tree's diagonal); wider packets take the
+/// binary packet walk, whose per-lane box tests cull better than one wide frustum.
+// Measured: bench-trace torus100k, primary rays at N×N pixels (a 4×2 packet spans
+// about 2.2 mrad × 1024/N), every one-signed packet forced through the wide walk
+// (spread ∞), mode=8 vs mode=8b Mrays/s, 1 thread, two runs each at load ~4:
+// N=1024: 17.5/13.7, 15.7/11.4; 512: 9.8/9.2, 15.3/9.9; 256: 7.9/6.5, 7.8/6.2;
+// 128: 4.2/3.9, 4.4/3.7; 96: 3.2/3.6, 2.8/2.6; 64: 1.8/2.4, 1.8/2.1; 16: 0.17/3.3.
+// Incoherent rays sorted into one-signed packets: 0.00 (sic) vs 1.21. Break-even
+// near 23 mrad (N = 96): 15 mrad keeps a margin.
+pub const FRUSTUM_SPREAD: f32 = 0.015;
+
+/// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`).
+// Measured: octaray render scenes/given.txt (8 objects, one wide node) --size 2048
+// --threads 1, two runs each, wide packet walk for every coherent packet: 1.33,
+// 1.19 s against 1.05, 0.95 s with the binary packet walk (Frustum::new alone 6.9 %
+// of the profile); scenes/mirrors.txt 2.22, 1.90 s against 1.89, 1.69 s.
+pub const WIDE_PACKET_MIN_NODES: usize = 16;
+
+/// Interval bounds of a packet's rays, splatted, for the slab test of eight boxes at once.
+pub(super) struct Frustum {
+    /// Per axis: index in `WideNode::bounds` of the entry and the exit plane.
+    near: [usize; 3],
+    far: [usize; 3],
+    /// Per axis: the origin bound subtracted from the entry plane (o_hi when 1/d > 0,
+    /// o_lo otherwise) and from the exit plane (the other one).
+    o_near: [f32x8; 3],
+    o_far: [f32x8; 3],
+    /// Per axis: least and largest 1/d over the lanes.
+    r_lo: [f32x8; 3],
+    r_hi: [f32x8; 3],
+}
+
+/// The least lane of `v` in every lane (a butterfly: three swaps and three
+/// minima). No lane may be NaN (`fast_min`).
+// Tried: a scalar fold over `to_array` (f32::min with its NaN blends): Frustum::new
+// alone took 5.2 % of a perf profile of bench-trace primary mode=8.
+#[inline(always)]
+fn splat_min(v: f32x8) -> f32x8 {
+    let a = v.to_array();
+    let v = v.fast_min(f32x8::new([a[4], a[5], a[6], a[7], a[0], a[1], a[2], a[3]]));
+    let a = v.to_array();
+    let v = v.fast_min(f32x8::new([a[2], a[3], a[0], a[1], a[6], a[7], a[4], a[5]]));
+    let a = v.to_array();
+    v.fast_min(f32x8::new([a[1], a[0], a[3], a[2], a[5], a[4], a[7], a[6]]))
+}
+
+/// The largest lane of `v` in every lane (as [`splat_min`]).
+#[inline(always)]
+fn splat_max(v: f32x8) -> f32x8 {
+    let a = v.to_array();
+    let v = v.fast_max(f32x8::new([a[4], a[5], a[6], a[7], a[0], a[1], a[2], a[3]]));
+    let a = v.to_array();
+    let v = v.fast_max(f32x8::new([a[2], a[3], a[0], a[1], a[6], a[7], a[4], a[5]]));
+    let a = v.to_array();
+    v.fast_max(f32x8::new([a[1], a[0], a[3], a[2], a[5], a[4], a[7], a[6]]))
+}
+
+/// Least of the lanes of `v` in `m` (+∞ when none), splatted. No NaN lane in `m`.
+#[inline(always)]
+fn hmin(v: f32x8, m: Mask8) -> f32x8 {
+    splat_min(m.select(v, f32x8::splat(f32::INFINITY)))
+}
+
+/// Largest of the lanes of `v` in `m` (−∞ when none), splatted. No NaN lane in `m`.
+#[inline(always)]
+fn hmax(v: f32x8, m: Mask8) -> f32x8 {
+    splat_max(m.select(v, f32x8::splat(f32::NEG_INFINITY)))
+}
+
+impl Frustum {
+    /// The frustum of the lanes `act` (non-empty, finite, all with the direction signs
+    /// of `octant`: bit k set when 1/d < 0 on axis k).
+    /// `None` when the lanes are too far apart for one frustum to serve them: their
+    /// directions more than `spread` radians from the first lane's (unit directions),
+    /// or their origins spread over more than `spread` times `size` (the tree's
+    /// diagonal) on an axis.
+    #[inline]
+    pub(super) fn new(
+        r: &RayPacket8,
+        act: Mask8,
+        octant: u32,
+        spread: f32,
+        size: f32,
+    ) -> Option<Frustum> {
+        let o = [r.origin.x, r.origin.y, r.origin.z];
+        let inv = [r.inv_dir.x, r.inv_dir.y, r.inv_dir.z];
+        let neg = [0, 1, 2].map(|a| (octant >> a & 1) as usize);
+        let o_lo = [0, 1, 2].map(|a| hmin(o[a], act));
+        let o_hi = [0, 1, 2].map(|a| hmax(o[a], act));
+        let d0 = Vec3x8::splat(r.dir.lane(act.bits().trailing_zeros() as usize));
+        let cos = hmin(r.dir.dot(d0), act).to_array()[0];
+        let ext = (o_hi[0] - o_lo[0])
+            .fast_max(o_hi[1] - o_lo[1])
+            .fast_max(o_hi[2] - o_lo[2])
+            .to_array()[0];
+        // (1 − cos θ ≈ θ²/2; an infinite spread lets every packet through)
+        if cos < 1.0 - 0.5 * spread * spread || ext > spread * size {
+            return None;
+        }
+        Some(Frustum {
+            near: [0, 1, 2].map(|a| 2 * a + neg[a]),
+            far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
+            o_near: [0, 1, 2].map(|a| if neg[a] == 0 { o_hi[a] } else { o_lo[a] }),
+            o_far: [0, 1, 2].map(|a| if neg[a] == 0 { o_lo[a] } else { o_hi[a] }),
+            r_lo: [0, 1, 2].map(|a| hmin(inv[a], act)),
+            r_hi: [0, 1, 2].map(|a| hmax(inv[a], act)),
+        })
+    }
+
+    /// The eight boxes of `bounds` (layout of `WideNode::bounds`) that some lane may
+    /// meet with 0 <= t <= t_max (far bound widened by 1 + 2γ(3) as in the per-lane
+    /// test), as bits, and a lower bound of the lanes' entry distances. Empty slots
+    /// (lo = +∞, hi = −∞) give entry +∞ and exit −∞: never met. No NaN arises (finite
+    /// origins, finite non-zero 1/d), so `fast_min`/`fast_max` are exact.
+    #[inline(always)]
+    pub(super) fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+        let entry = |a: usize| {
+            let d = bounds[self.near[a]] - self.o_near[a];
+            (d * self.r_lo[a]).fast_min(d * self.r_hi[a])
+        };
+        let exit = |a: usize| {
+            let d = bounds[self.far[a]] - self.o_far[a];
+            (d * self.r_lo[a]).fast_max(d * self.r_hi[a])
+        };
+        let near = entry(0)
+            .fast_max(entry(1))
+            .fast_max(entry(2).fast_max(f32x8::ZERO));
+        let far = exit(0)
+            .fast_min(exit(1))
+            .fast_min(exit(2).fast_min(f32x8::splat(t_max)))
+            * f32x8::splat(FAR_WIDEN);
+        (near.le(far).bits(), near)
+    }
+}
+
+/// Starts loading the children `bits` of `node`: whole nodes, and the first triangle
+/// block of a leaf whole (its leaf boxes, read first by the packet walk, included).
+// Measured against `WideBvh::prefetch_children` (triangle lines only): bench-trace
+// torus100k primary mode=8 --reps 20, 1 thread, nine interleaved pairs at load 5-6:
+// 14.70, 10.24, 11.52, 9.61, 11.79, 11.95, 12.80, 11.25, 10.28 Mrays/s (median 11.5)
+// against 11.08, 10.21, 10.80, 9.84, 14.35, 10.82, 10.89, 10.80, 11.00 (median 10.9).
+#[inline(always)]
+fn prefetch_children_x8(w: &WideBvh, node: &WideNode, mut bits: u32) {
+    while bits != 0 {
+        let s = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let (child, meta) = (node.child[s] as usize, node.meta[s]);
+        if meta == INTERIOR {
+            if let Some(n) = w.nodes.get(child) {
+                prefetch_lines(n);
+            }
+        } else if meta >> 28 == PrimKind::Triangle as u32
+            && let Some(b) = w.blocks.get(child)
+        {
+            prefetch_lines(b);
+        }
+    }
+}
+
+/// Lanes whose origin and 1/d are finite (the others never hit a bounded primitive and
+/// would make the slab tests NaN).
+#[inline(always)]
+pub(super) fn finite_lanes(r: &RayPacket8) -> Mask8 {
+    let fin = |v: f32x8| (v * f32x8::ZERO).eq8(f32x8::ZERO); // ±∞ · 0 and NaN · 0: NaN
+    fin(r.origin.x)
+        & fin(r.origin.y)
+        & fin(r.origin.z)
+        & fin(r.inv_dir.x)
+        & fin(r.inv_dir.y)
+        & fin(r.inv_dir.z)
+}
+
+/// The direction signs shared by every lane of `act` (bit k: 1/d < 0 on axis k; 1/d
+/// carries the sign of d, −0 included), or `None` when the lanes differ.
+#[inline(always)]
+pub(super) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
+    let a = act.bits();
+    let mut oct = 0;
+    for (k, inv) in [r.inv_dir.x, r.inv_dir.y, r.inv_dir.z]
+        .into_iter()
+        .enumerate()
+    {
+        let s = inv.to_bitmask() & a;
+        if s == a {
+            oct |= 1 << k;
+        } else if s != 0 {
+            return None;
+        }
+    }
+    Some(oct)
+}
+
+/// Triangle `j` of a block, as the binary walk's kernel reads it (the block holds the
+/// same floats, copied).
+#[inline(always)]
+fn block_triangle(b: &TriBlock, j: usize) -> Triangle32 {
+    let v = |vi: usize| {
+        let p = &b.tri.v[vi];
+        glam::Vec3::new(p[0].as_array()[j], p[1].as_array()[j], p[2].as_array()[j])
+    };
+    Triangle32 {
+        v: [v(0), v(1), v(2)],
+    }
+}
+
+/// The binary leaf box of triangle `j` of a block, as a binary node (its packet slab
+/// test is the one the binary packet walk runs on that leaf).
+#[inline(always)]
+fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
+    let c = |k: usize| b.bounds[k].as_array()[j];
+    BvhNode {
+        lo: [c(0), c(2), c(4)],
+        first: 0,
+        hi: [c(1), c(3), c(5)],
+        meta: 0,
+    }
+}
+
+/// Records the hits `m` at `t` of primitive `code` as `PrimSet::record_x8` does: nearer
+/// wins, an exact tie goes to the lower object index.
+#[inline]
+fn record_x8(
+    prims: &PrimSet,
+    hit: &mut HitPacket8,
+    m: Mask8,
+    t: f32x8,
+    u: f32x8,
+    v: f32x8,
+    code: i32,
+) {
+    let mut closer = m & t.lt(hit.t);
+    let tie = m & t.eq8(hit.t) & hit.hit_mask();
+    if tie.any() {
+        let obj = prims.object(code);
+        let mut extra = 0;
+        for lane in 0..8 {
+            if tie.lane(lane) && obj < prims.object(hit.prim_lane(lane)) {
+                extra |= 1 << lane;
+            }
+        }
+        closer = closer | Mask8::from_bits(extra);
+    }
+    if closer.none() {
+        return;
+    }
+    hit.t = closer.select(t, hit.t);
+    hit.prim = closer.select_i32(wide::i32x8::splat(code), hit.prim);
+    hit.u = closer.select(u, hit.u);
+    hit.v = closer.select(v, hit.v);
+}
+
+impl Bvh {
+    /// The tree part of [`Bvh::intersect_x8`] through the 8-wide tree, for the lanes
+    /// `active` (finite, see [`finite_lanes`]) when they share the direction signs
+    /// `octant` (see [`shared_octant`]); false (nothing done) when they spread wider
+    /// than `spread` (see [`Frustum::new`]).
+    pub(super) fn intersect_x8_wide(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        octant: u32,
+        spread: f32,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) -> bool {
+        let w = &self.wide;
+        let act = active;
+        if w.nodes.is_empty() || act.none() {
+            return true;
+        }
+        let Some(fr) = Frustum::new(r, act, octant, spread, self.diagonal()) else {
+            return false;
+        };
+        // the largest nearest hit of the lanes: nothing entered beyond it can be nearer
+        let mut t_hi = hmax(hit.t, act).to_array()[0];
+        // uninitialised, as in the single-ray walk; entries below `sp` are written
+        // before they are read
+        let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
+        let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
+        let mut sp = 0usize;
+        let mut cur = pack(0, INTERIOR);
+        'walk: loop {
+            let (child, meta) = (cur as u32, (cur >> 32) as u32);
+            if meta == INTERIOR {
+                let node = &w.nodes[child as usize];
+                steps.boxes += 1;
+                let (mut bits, near) = fr.test(&node.bounds, t_hi);
+                prefetch_children_x8(w, node, bits);
+                if bits != 0 {
+                    let first = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if bits == 0 {
+                        cur = pack(node.child[first], node.meta[first]);
+                        continue 'walk;
+                    }
+                    // two or more: by entry bound (its bits, >= 0 so ordered as
+                    // integers, then the slot), all but the nearest pushed, farthest first
+                    let nd = near.to_array();
+                    let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+                    let mut keys = [0u64; 8];
+                    keys[0] = key(first);
+                    let mut n = 1;
+                    while bits != 0 {
+                        let s = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        let k = key(s);
+                        let mut j = n;
+                        while j > 0 && keys[j - 1] < k {
+                            keys[j] = keys[j - 1];
+                            j -= 1;
+                        }
+                        keys[j] = k;
+                        n += 1;
+                    }
+                    for &k in &keys[..n - 1] {
+                        let s = (k & 0xff) as usize;
+                        refs[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
+                        dists[sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
+                        sp += 1;
+                    }
+                    let s = (keys[n - 1] & 0xff) as usize;
+                    cur = pack(node.child[s], node.meta[s]);
+                    continue 'walk;
+                }
+            } else if self.leaf_intersect_x8(child, meta, r, act, &fr, t_hi, hit, steps) {
+                t_hi = hmax(hit.t, act).to_array()[0];
+            }
+            // pop the next subtree some lane may still enter before its nearest hit
+            loop {
+                if sp == 0 {
+                    break 'walk;
+                }
+                sp -= 1;
+                // SAFETY: entries 0..sp (before the decrement) were written above.
+                let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
+                if d <= t_hi * FAR_WIDEN {
+                    cur = rf;
+                    break;
+                }
+            }
+        }
+        true
+    }
+
+    /// Length of the diagonal of the tree's root box (0 when empty).
+    #[inline]
+    fn diagonal(&self) -> f32 {
+        self.nodes.first().map_or(0.0, |n| {
+            let d = n.bounds();
+            (d.hi - d.lo).length()
+        })
+    }
+
+    /// A leaf of the wide packet walk; whether any lane's hit changed.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn leaf_intersect_x8(
+        &self,
+        child: u32,
+        meta: u32,
+        r: &RayPacket8,
+        act: Mask8,
+        fr: &Frustum,
+        t_hi: f32,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) -> bool {
+        let count = meta & COUNT_MASK;
+        let kind = PrimKind::from_u32(meta >> 28);
+        if kind != PrimKind::Triangle {
+            steps.leaf(kind, count as usize, act.count());
+            self.prims
+                .intersect_x8(kind, child as usize, count as usize, r, act, hit);
+            return true;
+        }
+        let mut t_hi = t_hi;
+        let mut changed = false;
+        let nb = count.div_ceil(8) as usize;
+        for b in &self.wide.blocks[child as usize..child as usize + nb] {
+            // the triangles whose binary leaf some lane may enter
+            let mut bits = fr.test(&b.bounds, t_hi).0;
+            while bits != 0 {
+                let j = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                steps.prims += 1;
+                let (m, t, u, v) = block_triangle(b, j).intersect_x8(r, act, hit.t);
+                if m.none() {
+                    continue;
+                }
+                // only lanes that pass the triangle's binary leaf box (module doc)
+                let m = block_leaf_box(b, j).intersect_x8(r, m, hit.t);
+                if m.none() {
+                    continue;
+                }
+                record_x8(
+                    &self.prims,
+                    hit,
+                    m,
+                    t,
+                    u,
+                    v,
+                    prim_code(PrimKind::Triangle, b.first as usize + j),
+                );
+                t_hi = hmax(hit.t, act).to_array()[0];
+                changed = true;
+            }
+        }
+        changed
+    }
+
+    /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
+    /// `active` (finite, sharing the direction signs `octant`) blocked with 0 < t < t_max;
+    /// `None` (nothing done) when they spread wider than `spread`.
+    pub(super) fn occluded_x8_wide(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        octant: u32,
+        spread: f32,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Option<Mask8> {
+        let w = &self.wide;
+        let act = active;
+        if w.nodes.is_empty() || act.none() {
+            return Some(Mask8::NONE);
+        }
+        let fr = Frustum::new(r, act, octant, spread, self.diagonal())?;
+        let t_hi = hmax(t_max, act).to_array()[0];
+        let mut left = act;
+        // uninitialised for the same reason as in `intersect_x8_wide`
+        let mut stack = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
+        stack[0] = MaybeUninit::new(pack(0, INTERIOR));
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            // SAFETY: entries 0..sp (before the decrement) were written.
+            let cur = unsafe { stack[sp].assume_init() };
+            let (child, meta) = (cur as u32, (cur >> 32) as u32);
+            if meta == INTERIOR {
+                let node = &w.nodes[child as usize];
+                steps.boxes += 1;
+                let mut bits = fr.test(&node.bounds, t_hi).0;
+                prefetch_children_x8(w, node, bits);
+                while bits != 0 {
+                    let s = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    stack[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
+                    sp += 1;
+                }
+                continue;
+            }
+            let count = meta & COUNT_MASK;
+            let kind = PrimKind::from_u32(meta >> 28);
+            if kind != PrimKind::Triangle {
+                steps.leaf(kind, count as usize, left.count());
+                left = left.and_not(self.prims.occluded_x8(
+                    kind,
+                    child as usize,
+                    count as usize,
+                    r,
+                    left,
+                    t_max,
+                ));
+            } else {
+                let nb = count.div_ceil(8) as usize;
+                for b in &self.wide.blocks[child as usize..child as usize + nb] {
+                    let mut bits = fr.test(&b.bounds, t_hi).0;
+                    while bits != 0 && left.any() {
+                        let j = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        steps.prims += 1;
+                        let m = block_triangle(b, j).occluded_x8(r, left, t_max);
+                        if m.any() {
+                            left = left.and_not(block_leaf_box(b, j).intersect_x8(r, m, t_max));
+                        }
+                    }
+                }
+            }
+            if left.none() {
+                break;
+            }
+        }
+        Some(act.and_not(left))
+    }
+}
