@@ -459,7 +459,7 @@ impl BoxRay {
 /// systems: an ordinary vector. Filled in place, so the build copies nothing.
 // Measured: bench-trace torus100k incoherent mode=1 alone, 1 thread, interleaved at
 // load ~7: 1.12, 1.05, 1.30 Mrays/s with, 0.91, 0.99, 0.89 without.
-fn huge_vec<T: Copy>(cap: usize) -> Vec<T> {
+pub(crate) fn huge_vec<T: Copy>(cap: usize) -> Vec<T> {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
