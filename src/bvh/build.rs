@@ -9,15 +9,20 @@
 //! below the traversal stack size.
 //!
 //! Work per node: one binning pass and one in-place partition pass over 32-byte
-//! references (bounds with index and kind in the spare lanes); the partition computes
-//! both children's bounds and centroid bounds on the way, so no node rescans its range.
-//! Primitives are reordered into leaf order once, at the end. Each pair of children
-//! sits on one 64-byte cache line (node 1 may be an unreachable pad for that).
+//! references (bounds with index and kind in the spare lanes). Above `SAMPLE`
+//! references the partition computes both children's bounds and centroid bounds on
+//! the way (the range streams from memory once); at or below, it is branchless and
+//! the bounds are a second pass over the (cached) range. Ranges of two skip the bins.
+//! Primitives are reordered into leaf order once, at the end, by one gather. Each pair
+//! of children sits on one 64-byte cache line (node 1 may be an unreachable pad for
+//! that). The large arrays are in huge pages (kernel page-fault work was ~20 % of a
+//! perf profile of build and collapse before).
 
 use glam::Vec4;
 use wide::{f32x4, i32x4};
 
 use super::node::{Aabb, BvhNode};
+use super::wide::huge_vec;
 use crate::geometry::{PrimKind, PrimSet};
 
 /// Bins per axis.
@@ -109,7 +114,11 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     if total == 0 {
         return Vec::new();
     }
-    let mut refs = Vec::with_capacity(total);
+    // the large arrays of the build in huge pages (`huge_vec`): a fresh 4 KiB page
+    // costs a fault here; touching 120 MB took 85–130 ms in 4 KiB pages, 15–25 ms
+    // in 2 MiB ones (scratch test, this machine). Build of torus1m, thread CPU time,
+    // best of 5: references 51 -> 23 Mcycles, the reorder below 141 -> 69.
+    let mut refs = huge_vec(total);
     let mut root = Bounds::EMPTY;
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
@@ -124,16 +133,19 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     }
     // at most 2·total − 1 nodes and one pad: never reallocated, so the pad below
     // keeps every pair of children on one 64-byte cache line
-    let mut nodes = Vec::with_capacity(2 * total);
+    let mut nodes = huge_vec(2 * total);
     nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
     if (nodes.as_ptr() as usize / std::mem::size_of::<BvhNode>()).is_multiple_of(2) {
         // pairs start at even indices; the pad (index 1) is unreachable from the
         // root and has no area (no SAH cost)
         nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
     }
-    // leaves as (node, start, end) in refs, found in order of `start` (depth first,
-    // left before right); their `first` is fixed after reordering
-    let mut leaves: Vec<(u32, u32, u32)> = Vec::with_capacity(total / 2 + 1);
+    // leaves are found in order of `start` (depth first, left before right) and
+    // cover the references in order, so a leaf's primitives will start at the count
+    // of its kind in the leaves before it
+    let mut next = [0u32; 8]; // by kind code (PrimKind as u32 < 8)
+    #[cfg(debug_assertions)]
+    let mut covered = 0usize;
     let mut tasks = Vec::with_capacity(2 * MEDIAN_DEPTH);
     tasks.push((0u32, 0usize, total, 0usize, root));
     while let Some((ni, start, end, depth, b)) = tasks.pop() {
@@ -142,10 +154,16 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
         let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind() != part[0].kind());
         let (mid, axis, lb, rb) = match choose_split(part, &b, depth) {
             Split::Leaf if !mixed => {
-                debug_assert!(leaves.last().is_none_or(|l| l.2 as usize <= start));
-                leaves.push((ni, start as u32, end as u32));
-                let kind = PrimKind::from_u32(part[0].kind());
-                nodes[ni as usize] = BvhNode::leaf(b.aabb(), 0, n as u32, kind);
+                #[cfg(debug_assertions)]
+                {
+                    assert_eq!(covered, start, "leaves out of reference order");
+                    covered = end;
+                }
+                let k = part[0].kind();
+                let first = next[k as usize];
+                next[k as usize] += n as u32;
+                let kind = PrimKind::from_u32(k);
+                nodes[ni as usize] = BvhNode::leaf(b.aabb(), first, n as u32, kind);
                 continue;
             }
             Split::Leaf => {
@@ -154,10 +172,22 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
                 let (mid, lb, rb) = partition(part, |r| r.kind() == k);
                 (mid, widest_axis(b.chi - b.clo), lb, rb)
             }
-            Split::At(axis, bin, scale, base, top) => {
-                let (mid, lb, rb) = partition(part, |r| {
-                    bin_of(r.centroid2()[axis], base, scale, top) < bin
-                });
+            Split::At(axis, bin, scale, base) => {
+                // c's bin (as in `bin_split`: (c − base) · scale truncated, at most
+                // the last bin) is below `bin` ⟺ (c − base) · scale < bin: the
+                // product is >= 0 (base is the least centroid) and `bin` is at most
+                // the last bin, so neither the truncation nor the clamp changes the
+                // comparison (was a saturating float-to-int cast per reference)
+                let bin = bin as f32;
+                let left = |r: &Ref| (r.centroid2()[axis] - base) * scale < bin;
+                // Tried: the branchless partition on every range: thread CPU time of
+                // the torus1m build 408, 431, 389 ms on ranges <= SAMPLE only; 449,
+                // 468, 466 on all (SAH 52.26, the tree changes slightly).
+                let (mid, lb, rb) = if n <= SAMPLE {
+                    partition_branchless(part, left)
+                } else {
+                    partition(part, left)
+                };
                 (mid, axis, lb, rb)
             }
             Split::Half(axis) => {
@@ -181,42 +211,22 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
         tasks.push((left + 1, start + mid, end, depth + 1, rb));
         tasks.push((left, start, start + mid, depth + 1, lb));
     }
-    // reorder the BVH kinds into leaf order; each leaf is contiguous in its kind
-    let mut p = PrimSet::default();
-    p.triangles.reserve(prims.triangles.len());
-    p.triangle_obj.reserve(prims.triangles.len());
-    for (ni, start, end) in leaves {
-        let kind = PrimKind::from_u32(refs[start as usize].kind());
-        nodes[ni as usize].first = p.len(kind) as u32;
-        let leaf = &refs[start as usize..end as usize];
-        match kind {
-            PrimKind::Sphere => {
-                for r in leaf {
-                    p.spheres.push(prims.spheres[r.index()]);
-                    p.sphere_obj.push(prims.sphere_obj[r.index()]);
-                }
-            }
-            PrimKind::Triangle | PrimKind::TriangleMoller => {
-                for r in leaf {
-                    p.triangles.push(prims.triangles[r.index()]);
-                    p.triangle_obj.push(prims.triangle_obj[r.index()]);
-                }
-            }
-            PrimKind::Quadric => {
-                for r in leaf {
-                    p.quadrics.push(prims.quadrics[r.index()]);
-                    p.quadric_obj.push(prims.quadric_obj[r.index()]);
-                }
-            }
-            PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
-        }
-    }
-    prims.spheres = p.spheres;
-    prims.sphere_obj = p.sphere_obj;
-    prims.triangles = p.triangles;
-    prims.triangle_obj = p.triangle_obj;
-    prims.quadrics = p.quadrics;
-    prims.quadric_obj = p.quadric_obj;
+    // reorder the BVH kinds into leaf order: each kind's new array is its
+    // references' primitives in reference order, one gather (was a push per
+    // primitive, leaf by leaf, after a pass over a list of the leaves)
+    use PrimKind::{Quadric, Sphere};
+    // the triangles are of one kind or the other, per scene (profile `triangle_test`)
+    let tri = if prims.moller {
+        PrimKind::TriangleMoller
+    } else {
+        PrimKind::Triangle
+    };
+    prims.spheres = gather(&refs, Sphere, &prims.spheres);
+    prims.sphere_obj = gather(&refs, Sphere, &prims.sphere_obj);
+    prims.triangles = gather(&refs, tri, &prims.triangles);
+    prims.triangle_obj = gather(&refs, tri, &prims.triangle_obj);
+    prims.quadrics = gather(&refs, Quadric, &prims.quadrics);
+    prims.quadric_obj = gather(&refs, Quadric, &prims.quadric_obj);
     nodes
 }
 
@@ -232,14 +242,9 @@ fn widest_axis(extent: Vec4) -> usize {
 
 enum Split {
     Leaf,
-    /// Axis, first bin of the right side, bin scale, bin base, last bin.
-    At(usize, usize, f32, f32, usize),
+    /// Axis, first bin of the right side, bin scale, bin base.
+    At(usize, usize, f32, f32),
     Half(usize),
-}
-
-#[inline]
-fn bin_of(c: f32, base: f32, scale: f32, top: usize) -> usize {
-    (((c - base) * scale) as usize).min(top)
 }
 
 /// Per-axis bins: bounds and counts.
@@ -286,11 +291,34 @@ fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
     if depth >= MEDIAN_DEPTH {
         return Split::Half(widest);
     }
-    if n <= MAX_LEAF {
+    if n == 2 {
+        return pair_split(part, b);
+    }
+    // nb = min(n, B) bins are used: the smaller B, the fewer bins are cleared
+    if n <= 4 {
+        bin_split::<4>(part, b)
+    } else if n <= MAX_LEAF {
         bin_split::<MAX_LEAF>(part, b)
     } else {
         bin_split::<BINS>(part, b)
     }
+}
+
+/// `bin_split` of two references, without bins: on every
+/// axis where the centroids differ they fall in bins 0 and 1, so the one candidate is
+/// one reference per side, at the same cost on every such axis, and the first such
+/// axis wins. Same result as `bin_split::<MAX_LEAF>`, bit for bit.
+fn pair_split(part: &[Ref], b: &Bounds) -> Split {
+    let extent = b.chi - b.clo;
+    let (l, r) = (&part[0], &part[1]);
+    let cost = half_area(l.lo, l.hi) + half_area(r.lo, r.hi);
+    let node_area = half_area(b.lo, b.hi).max(f32::MIN_POSITIVE);
+    if C_TRAVERSE + cost / node_area >= 2.0 {
+        return Split::Leaf;
+    }
+    let axis = (0..3).find(|&a| extent[a] > 0.0).expect("centroids differ");
+    let scale = 2.0f32 * (1.0 - 1e-6) / extent[axis];
+    Split::At(axis, 1, scale, b.clo[axis])
 }
 
 /// The cheapest SAH split over min(n, B) bins per axis, or a leaf.
@@ -305,9 +333,8 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
     let scale = Vec4::splat(nb as f32 * (1.0 - 1e-6)) / extent;
     let scale = Vec4::select(extent.cmpgt(Vec4::ZERO), scale, Vec4::ZERO);
     let base = b.clo;
-    // the same bin as `bin_of` on each axis: (c − base) · scale truncated, at most
-    // nb − 1 (never negative: base is the least centroid). One SIMD truncation
-    // instead of three saturating scalar casts.
+    // the bin on each axis: (c − base) · scale truncated, at most nb − 1 (never
+    // negative: base is the least centroid). One SIMD truncation for three axes.
     let top = i32x4::splat(nb as i32 - 1);
     let (base4, scale4) = (f32x4::from(base.to_array()), f32x4::from(scale.to_array()));
     let bin = |r: &Ref| {
@@ -369,7 +396,7 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
         return Split::Leaf;
     }
     let axis = best.1;
-    Split::At(axis, best.2, scale[axis], base[axis], nb - 1)
+    Split::At(axis, best.2, scale[axis], base[axis])
 }
 
 /// Moves the refs satisfying `left` to the front; returns their count and the
@@ -399,4 +426,40 @@ fn partition(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, B
         rb.add(&part[j]);
     }
     (i, lb, rb)
+}
+
+/// The primitives of `kind` in the order of their references.
+fn gather<T: Copy>(refs: &[Ref], kind: PrimKind, from: &[T]) -> Vec<T> {
+    let mut v = huge_vec(from.len());
+    if from.len() == refs.len() {
+        // one kind only
+        v.extend(refs.iter().map(|r| from[r.index()]));
+    } else {
+        let k = kind as u32;
+        v.extend(
+            refs.iter()
+                .filter(|r| r.kind() == k)
+                .map(|r| from[r.index()]),
+        );
+    }
+    v
+}
+
+/// Moves the refs satisfying `left` to the front without a branch on `left` (Lomuto:
+/// each ref swaps with the one just past the left side, which then grows by one if
+/// the ref belongs left; on ranges that fit the cache the swaps cost less than the
+/// mispredicted branches), then bounds both sides; returns the left count and the
+/// bounds. Torus1m build, thread CPU time, interleaved with the
+/// branching `partition` on every range: 455/458, 439/449, 358/473 ms.
+#[inline]
+fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, Bounds) {
+    let mut j = 0;
+    for i in 0..part.len() {
+        let r = part[i];
+        let is_left = left(&r);
+        part[i] = part[j];
+        part[j] = r;
+        j += is_left as usize;
+    }
+    (j, Bounds::of(&part[..j]), Bounds::of(&part[j..]))
 }
