@@ -510,6 +510,49 @@ fn finite(r: &Ray1) -> bool {
     r.origin.is_finite() && r.inv_dir.is_finite()
 }
 
+/// Of a node's hit children (`first`, then the slots in `bits`), pushes all but the
+/// nearest by entry distance `near` onto the traversal stack, farthest first (keys: the
+/// distance's bits, >= 0 so ordered as integers, then the slot; insertion sort, at most
+/// 8), and returns the nearest, to visit next. Shared by the single-ray and the
+/// frustum packet walks.
+#[inline(always)]
+pub(super) fn push_ordered(
+    node: &WideNode,
+    near: f32x8,
+    first: usize,
+    mut bits: u32,
+    refs: &mut [MaybeUninit<u64>; WIDE_STACK],
+    dists: &mut [MaybeUninit<f32>; WIDE_STACK],
+    sp: &mut usize,
+) -> u64 {
+    let nd = near.to_array();
+    let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+    let mut keys = [0u64; 8];
+    keys[0] = key(first);
+    let mut n = 1;
+    while bits != 0 {
+        let s = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        // insertion, descending
+        let k = key(s);
+        let mut j = n;
+        while j > 0 && keys[j - 1] < k {
+            keys[j] = keys[j - 1];
+            j -= 1;
+        }
+        keys[j] = k;
+        n += 1;
+    }
+    for &k in &keys[..n - 1] {
+        let s = (k & 0xff) as usize;
+        refs[*sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
+        dists[*sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
+        *sp += 1;
+    }
+    let s = (keys[n - 1] & 0xff) as usize;
+    pack(node.child[s], node.meta[s])
+}
+
 /// A stack entry: slot `child` and `meta` packed (meta in the high half).
 #[inline]
 pub(super) fn pack(child: u32, meta: u32) -> u64 {
@@ -560,36 +603,8 @@ impl Bvh {
                             cur = pack(node.child[first], node.meta[first]);
                             continue 'walk;
                         }
-                        // two or more: sort by entry distance (keys: the distance's bits,
-                        // >= 0 so ordered as integers, then the slot), push all but the
-                        // nearest, farthest first
-                        let nd = near.to_array();
-                        let key =
-                            |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
-                        let mut keys = [0u64; 8];
-                        keys[0] = key(first);
-                        let mut n = 1;
-                        while bits != 0 {
-                            let s = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            // insertion, descending
-                            let k = key(s);
-                            let mut j = n;
-                            while j > 0 && keys[j - 1] < k {
-                                keys[j] = keys[j - 1];
-                                j -= 1;
-                            }
-                            keys[j] = k;
-                            n += 1;
-                        }
-                        for &k in &keys[..n - 1] {
-                            let s = (k & 0xff) as usize;
-                            refs[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
-                            dists[sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
-                            sp += 1;
-                        }
-                        let s = (keys[n - 1] & 0xff) as usize;
-                        cur = pack(node.child[s], node.meta[s]);
+                        // two or more: nearest next, the others pushed farthest first
+                        cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
                         continue 'walk;
                     }
                 } else {

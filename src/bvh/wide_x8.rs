@@ -34,6 +34,7 @@ use wide::f32x8;
 use super::node::BvhNode;
 use super::wide::{
     COUNT_MASK, INTERIOR, TriBlock, WIDE_STACK, WideBvh, WideNode, pack, prefetch_lines,
+    push_ordered,
 };
 use super::{Bvh, Steps};
 use crate::geometry::triangle::Triangle32;
@@ -336,33 +337,8 @@ impl Bvh {
                         cur = pack(node.child[first], node.meta[first]);
                         continue 'walk;
                     }
-                    // two or more: by entry bound (its bits, >= 0 so ordered as
-                    // integers, then the slot), all but the nearest pushed, farthest first
-                    let nd = near.to_array();
-                    let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
-                    let mut keys = [0u64; 8];
-                    keys[0] = key(first);
-                    let mut n = 1;
-                    while bits != 0 {
-                        let s = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        let k = key(s);
-                        let mut j = n;
-                        while j > 0 && keys[j - 1] < k {
-                            keys[j] = keys[j - 1];
-                            j -= 1;
-                        }
-                        keys[j] = k;
-                        n += 1;
-                    }
-                    for &k in &keys[..n - 1] {
-                        let s = (k & 0xff) as usize;
-                        refs[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
-                        dists[sp] = MaybeUninit::new(f32::from_bits((k >> 32) as u32));
-                        sp += 1;
-                    }
-                    let s = (keys[n - 1] & 0xff) as usize;
-                    cur = pack(node.child[s], node.meta[s]);
+                    // two or more: nearest next, the others pushed farthest first
+                    cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
                     continue 'walk;
                 }
             } else if self.leaf_intersect_x8(child, meta, r, act, &fr, t_hi, hit, steps) {
