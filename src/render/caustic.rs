@@ -601,7 +601,9 @@ impl CausticMap {
 
     /// A map over given photons (sorted into the grid here), with its widened twin.
     pub fn from_photons(photons: Vec<Photon>, radius: f64) -> CausticMap {
-        let wide = CausticMap::grid(photons.clone(), radius * WIDENING);
+        let mut wide = CausticMap::grid(photons.clone(), radius * WIDENING);
+        // the wide twin is read through its columns only
+        wide.photons = Vec::new();
         let mut map = CausticMap::grid(photons, radius);
         map.wide = Some(Box::new(wide));
         map
@@ -636,6 +638,16 @@ impl CausticMap {
     /// instead: a sparse region then shows a smooth glow, not single-photon speckles.
     pub fn irradiance(&self, p: DVec3, n: DVec3) -> DVec3 {
         let norm = |r: f64| 2.0 / (std::f64::consts::PI * r * r);
+        // most points see no photon at all, even within the wide radius (2.8 M of the
+        // 3.0 M estimates of prism_povray at 768²): one scan of the wide grid's rows
+        // settles them
+        if let Some(w) = &self.wide {
+            let mut any = false;
+            w.grid.runs(p, w.radius, &mut |_, _| any = true);
+            if !any {
+                return DVec3::ZERO;
+            }
+        }
         // the narrow estimate first: where it has enough photons (the bright spectrum)
         // the wide one, sixteen times the photons, is never gathered
         let (sum, count) = self.gather(p, n, self.radius);

@@ -17,9 +17,10 @@
 //!   normal ([`offset_origin_x8`]).
 //! - Packets with few active lanes (incoherent secondary rays) fall back to the
 //!   single-ray traversal of the same tree, lane by lane, below [`FALLBACK_LANES`].
-//! - Glass (prisms), only in scenes that have it ([`glass`]): a glass lane leaves the
-//!   mirror chain; its reflected ray and its transmitted rays (one per wavelength of the
-//!   pixel, 16 as two packets of 8) are traced as new packets one level deeper, and the
+//! - Glass (prisms), only in scenes that have it ([`glass`]): at a glass hit the
+//!   heavier branch goes on in the mirror-chain loop (an RGB lane's reflection, weighted
+//!   per channel; a monochromatic lane's heavier ray), the rest is traced nested: an RGB
+//!   lane's transmitted light as its pixel's 16 wavelengths in two packets of 8. The
 //!   caustic photon map adds the light glass bends onto the surfaces it lands on.
 
 mod glass;
@@ -141,7 +142,8 @@ struct PathState {
     weight: f32x8,
     /// Nested glass branchings so far.
     depth: u32,
-    /// Pixel of lane 0 (lane k is pixel (x + k % 4, y + k / 4)), for the wavelengths.
+    /// Pixel of lane 0 (lane k is pixel (x + k % 4, y + k / 4)), for the wavelengths;
+    /// read for RGB packets only (a monochromatic packet's lanes are wavelengths).
     pixel: [u32; 2],
 }
 

@@ -6,21 +6,17 @@
 //! rays traced at level L + 1. An RGB lane (one that has met no glass yet) splits its
 //! transmitted light into its pixel's 16 wavelengths ([`Wavelengths::for_pixel`], the
 //! same as the reference's): the 16 refracted rays leave one point in nearly one
-//! direction, so they are traced as two coherent packets of 8 monochromatic lanes.
-//! Its reflected ray (one direction for every wavelength, weighted by the mean of
-//! kr + kt·F) stays RGB and is traced with the other RGB glass lanes of the packet, in
-//! their own lanes; the RGB lanes' colour is then whole and they leave the mirror
-//! chain. A monochromatic lane splits into one reflected and one transmitted ray
-//! (Fresnel at its own n(λ)); as in the reference, the heavier goes on in the packet's
-//! loop (light trapped by total internal reflection bounces there at constant stack,
-//! up to the recursion level) and the lighter is traced nested, lanes in place.
+//! direction, so they are traced nested as two coherent packets of 8 monochromatic
+//! lanes. Its reflection (one direction for every wavelength, weighted per channel by
+//! the mean of kr + kt·F) goes on in the packet's mirror-chain loop, as the reference's
+//! does. A monochromatic lane splits into one reflected and one transmitted ray
+//! (Fresnel at its own n(λ)); as in the reference, the heavier goes on in the loop
+//! (light trapped by total internal reflection bounces there at constant stack, up to
+//! the recursion level) and the lighter is traced nested, lanes in place.
 //!
 //! Pruning as the reference: a branch whose colour could add at most
 //! [`GLASS_CUTOFF`] to the pixel is not traced, and [`MAX_GLASS_DEPTH`] bounds the
-//! nested branchings. The one difference: the reference follows an RGB lane's
-//! reflection in its loop, this path nests it, so it is bounded by
-//! [`MAX_GLASS_DEPTH`] too (a difference only for more than 64 glass reflections in a
-//! row that each keep more than 1/2048 of the light: glass with kr near 1).
+//! nested branchings.
 //!
 //! Non-glass surfaces add the caustic (`kd · c ⊙ E`, [`CausticMap::irradiance`]), whose
 //! photons this renderer traces through its own BVH ([`PhotonTracer`] below).
