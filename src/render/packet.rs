@@ -157,6 +157,18 @@ impl PathState {
             pixel,
         }
     }
+
+    /// A branch spawned at glass: one level and one nesting deeper, at wavelengths
+    /// `lambda` (`None`: RGB) with path weights `weight`.
+    fn branch(&self, lambda: Option<[f32; 8]>, weight: f32x8) -> PathState {
+        PathState {
+            level: self.level + 1,
+            lambda,
+            weight,
+            depth: self.depth + 1,
+            pixel: self.pixel,
+        }
+    }
 }
 
 /// The per-lane surface data a level's shading needs, gathered for the winners.
@@ -538,7 +550,8 @@ impl PacketRenderer {
             // were refracted (monochromatic lanes follow their heavier branch here)
             let mut turn: Option<(Mask8, Vec3x8, Mask8)> = None;
             if GLASS {
-                let glass = self.glass_lanes(&hit, lanes);
+                let gh = self.glass_hits(&hit, lanes);
+                let glass = gh.mask;
                 local = self.add_caustic(&g, lanes.and_not(glass), local);
                 if glass.any() {
                     // (at the last level a glass lane keeps only its Phong colour)
@@ -551,16 +564,14 @@ impl PacketRenderer {
                         };
                         if path.lambda.is_none() {
                             // RGB: the reflection goes on here, weighted per channel
-                            let (side, w) = self.split_rgb::<ANY_HIT, EPS>(
-                                &ray, &hit, &g, glass, &here, stats, steps,
-                            );
+                            let (side, w) =
+                                self.split_rgb::<ANY_HIT, EPS>(&ray, &g, &gh, &here, stats, steps);
                             local = local + side;
                             kr = glass.select(w.x.max(w.y).max(w.z), kr);
                             tint = Some(Vec3x8::select(glass, w, Vec3x8::new(kr, kr, kr)));
                         } else {
-                            let m = self.split_mono::<ANY_HIT, EPS>(
-                                &ray, &hit, &g, glass, &here, stats, steps,
-                            );
+                            let m =
+                                self.split_mono::<ANY_HIT, EPS>(&ray, &g, &gh, &here, stats, steps);
                             local = local + m.side;
                             kr = glass.select(m.main_weight, kr);
                             turn = Some((glass, m.main_dir, m.refracted));

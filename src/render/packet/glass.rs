@@ -74,6 +74,16 @@ fn interface_x8(d: Vec3x8, n_out: Vec3x8, n_glass: f32x8) -> Interface8 {
     }
 }
 
+/// The glass lanes of a packet's hits, and per lane the glass's kr, kt and Cauchy
+/// coefficients (zero in the other lanes).
+pub(super) struct GlassHits {
+    pub mask: Mask8,
+    pub kr: f32x8,
+    pub kt: f32x8,
+    pub cauchy_a: f32x8,
+    pub cauchy_b: f32x8,
+}
+
 /// What [`PacketRenderer::split_mono`] leaves to the caller's loop.
 pub(super) struct MonoSplit {
     /// The lighter branch's weighted colour (zero where it was not traced).
@@ -87,19 +97,31 @@ pub(super) struct MonoSplit {
 }
 
 impl PacketRenderer {
-    /// Lanes of `lanes` whose hit is a glass object.
-    pub(super) fn glass_lanes(&self, hit: &HitPacket8, lanes: Mask8) -> Mask8 {
-        let mut glass = 0;
+    /// The lanes of `lanes` whose hit is a glass object, and their glass.
+    pub(super) fn glass_hits(&self, hit: &HitPacket8, lanes: Mask8) -> GlassHits {
+        let mut mask = 0;
+        let mut k = [[0.0f32; 8]; 4];
         let mut bits = lanes.bits();
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let object = self.bvh.prims.object(hit.prim_lane(i));
-            if self.glass.get(object as usize).is_some_and(|g| g.is_some()) {
-                glass |= 1 << i;
+            let object = self.bvh.prims.object(hit.prim_lane(i)) as usize;
+            if let Some(Some(gl)) = self.glass.get(object) {
+                mask |= 1 << i;
+                k[0][i] = self.materials[object].kr;
+                k[1][i] = gl.kt as f32;
+                k[2][i] = gl.cauchy_a as f32;
+                k[3][i] = gl.cauchy_b as f32;
             }
         }
-        Mask8::from_bits(glass)
+        let [kr, kt, cauchy_a, cauchy_b] = k.map(f32x8::new);
+        GlassHits {
+            mask: Mask8::from_bits(mask),
+            kr,
+            kt,
+            cauchy_a,
+            cauchy_b,
+        }
     }
 
     /// `local` plus the caustic's `kd · c ⊙ E` on `lanes`.
@@ -133,28 +155,19 @@ impl PacketRenderer {
     /// lanes), and the per-channel weight of their reflection (the mean of kr + kt·F
     /// over the wavelengths; zero where it could add no more than the cutoff), which
     /// the caller's loop follows like a mirror ray.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn split_rgb<const ANY_HIT: bool, const EPS: bool>(
         &self,
         ray: &RayPacket8,
-        hit: &HitPacket8,
         g: &Gathered,
-        glass: Mask8,
+        gh: &GlassHits,
         path: &PathState,
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> (Vec3x8, Vec3x8) {
-        let [kr, kt, ca, cb] = self.glass_params(hit, glass);
+        let (glass, kr, kt, ca, cb) = (gh.mask, gh.kr, gh.kt, gh.cauchy_a, gh.cauchy_b);
         let outward = Vec3x8::select(g.flipped, -g.normal, g.normal);
         let cutoff = f32x8::splat(GLASS_CUTOFF as f32);
         let nest = path.depth < MAX_GLASS_DEPTH;
-        let deeper = |lambda, weight| PathState {
-            level: path.level + 1,
-            lambda,
-            weight,
-            depth: path.depth + 1,
-            pixel: path.pixel,
-        };
         // RGB meets glass: the transmitted light splits into the pixel's
         // wavelengths, two packets of eight per lane; the reflected ray (one
         // direction for every wavelength) stays RGB, in its lane
@@ -199,7 +212,7 @@ impl PacketRenderer {
                 let c = self.trace_deeper::<ANY_HIT, EPS>(
                     &packet,
                     go,
-                    &deeper(Some(lambda), reach),
+                    &path.branch(Some(lambda), reach),
                     stats,
                     steps,
                 );
@@ -225,18 +238,16 @@ impl PacketRenderer {
     /// more than [`GLASS_CUTOFF`] and fewer than [`MAX_GLASS_DEPTH`] branchings are
     /// nested already. Light kept by total internal reflection therefore bounces in
     /// the loop, at constant stack, up to the scene's recursion level.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn split_mono<const ANY_HIT: bool, const EPS: bool>(
         &self,
         ray: &RayPacket8,
-        hit: &HitPacket8,
         g: &Gathered,
-        glass: Mask8,
+        gh: &GlassHits,
         path: &PathState,
         stats: &mut RenderStats,
         steps: &mut Steps,
     ) -> MonoSplit {
-        let [kr, kt, ca, cb] = self.glass_params(hit, glass);
+        let (glass, kr, kt, ca, cb) = (gh.mask, gh.kr, gh.kt, gh.cauchy_a, gh.cauchy_b);
         let lambda = path.lambda.unwrap_or([0.0; 8]);
         let outward = Vec3x8::select(g.flipped, -g.normal, g.normal);
         let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
@@ -260,13 +271,7 @@ impl PacketRenderer {
             let refracted = go.and_not(t_main);
             stats.refraction_rays += refracted.count() as u64;
             stats.reflection_rays += go.and_not(refracted).count() as u64;
-            let next = PathState {
-                level: path.level + 1,
-                lambda: path.lambda,
-                weight: path.weight * other_weight,
-                depth: path.depth + 1,
-                pixel: path.pixel,
-            };
+            let next = path.branch(path.lambda, path.weight * other_weight);
             let c = self.trace_deeper::<ANY_HIT, EPS>(&packet, go, &next, stats, steps);
             side = Vec3x8::select(go, c * other_weight, Vec3x8::ZERO);
         }
@@ -278,24 +283,6 @@ impl PacketRenderer {
             main_weight: goes_on.select(main_weight, zero),
             refracted: t_main,
         }
-    }
-
-    /// Per lane of `glass`: kr, kt and Cauchy's a and b of the glass it hit.
-    fn glass_params(&self, hit: &HitPacket8, glass: Mask8) -> [f32x8; 4] {
-        let mut k = [[0.0f32; 8]; 4];
-        let mut bits = glass.bits();
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let object = self.bvh.prims.object(hit.prim_lane(i)) as usize;
-            if let Some(gl) = self.glass[object] {
-                k[0][i] = self.materials[object].kr;
-                k[1][i] = gl.kt as f32;
-                k[2][i] = gl.cauchy_a as f32;
-                k[3][i] = gl.cauchy_b as f32;
-            }
-        }
-        k.map(f32x8::new)
     }
 
     /// [`PacketRenderer::trace_path`] of a packet spawned at glass, with a mirror chain
