@@ -26,14 +26,16 @@
 mod glass;
 
 use glam::{DVec3, Vec3};
-use wide::f32x8;
+use wide::{f32x8, f64x4, i32x8};
 
 use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
-use crate::geometry::{Hit1, PrimKind, PrimSet, split_code};
-use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, offset_origin_x8};
+use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code, split_code};
+use crate::math::packet::{
+    Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
+};
 use crate::scene::{Floor, Glass, Material, Scene};
 
 /// Calls `$r.$method::<ANY_HIT, EPS, GLASS>(args)` with the renderer's knobs and the
@@ -128,6 +130,9 @@ pub struct PacketRenderer {
     caustics: Option<CausticMap>,
     /// Seed of the per-pixel wavelengths (the caustic settings' seed).
     seed: u64,
+    /// `Some(bits)` when every shininess (the floor's too) is a whole number below
+    /// 2^bits ≤ 256: the specular power is then taken by squaring ([`pow_whole`]).
+    whole_shine: Option<u32>,
 }
 
 /// Where a packet sits in its path from the camera (only glass scenes read it).
@@ -229,15 +234,22 @@ impl PacketRenderer {
                 )
             }),
         });
+        let materials: Vec<Mat32> = scene
+            .objects
+            .iter()
+            .map(|o| Mat32::new(&o.material))
+            .collect();
+        let floor = Mat32::new(&Floor::MATERIAL);
+        let whole_shine = materials.iter().chain([&floor]).try_fold(0, |bits, m| {
+            let s = m.shine;
+            ((0.0..256.0).contains(&s) && s.fract() == 0.0)
+                .then(|| bits.max(u32::BITS - (s as u32).leading_zeros()))
+        });
         let mut r = PacketRenderer {
             bvh,
             base,
-            materials: scene
-                .objects
-                .iter()
-                .map(|o| Mat32::new(&o.material))
-                .collect(),
-            floor: Mat32::new(&Floor::MATERIAL),
+            materials,
+            floor,
             lights: points.chain(spots).collect(),
             recursion_level: scene.recursion_level,
             fallback_lanes: FALLBACK_LANES,
@@ -246,6 +258,7 @@ impl PacketRenderer {
             glass: Vec::new(),
             caustics: None,
             seed: caustic.seed,
+            whole_shine,
         };
         if scene.has_prisms() {
             r.glass = scene
@@ -337,8 +350,63 @@ impl PacketRenderer {
         }
     }
 
-    /// Surface, colour and material of each hit lane.
+    /// Surface, colour and material of each hit lane: floor lanes in SIMD (on most
+    /// scenes the floor takes most lanes), the others lane by lane.
     fn gather(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
+        let Some(floor) = self.bvh.prims.floor else {
+            return self.gather_lanes(r, hit, lanes);
+        };
+        let code = i32x8::splat(prim_code(PrimKind::Floor, 0));
+        let on_floor = lanes & Mask8(wide::bytemuck::cast(hit.prim.simd_eq(code)));
+        if on_floor.none() {
+            return self.gather_lanes(r, hit, lanes);
+        }
+        let others = lanes.and_not(on_floor);
+        // Floor32::surface_1 and Floor::color_at, lane for lane the same operations
+        let d = r.dir * hit.t;
+        let p = r.origin + d;
+        let e = (r.origin.abs() + d.abs()) * f32x8::splat(gamma32(3));
+        let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
+        let up = r.dir.z.gt(zero);
+        let point = Vec3x8::new(p.x, p.y, f32x8::splat(floor.z));
+        let normal = Vec3x8::new(zero, zero, up.select(-one, one));
+        let white = checker_white(p.x, p.y, self.base);
+        let c = white.select(one, zero);
+        let m = &self.floor;
+        let g = Gathered {
+            point,
+            normal,
+            flipped: on_floor & up,
+            err: Vec3x8::new(e.x, e.y, zero),
+            color: Vec3x8::new(c, c, c),
+            ka: f32x8::splat(m.ka),
+            kd: f32x8::splat(m.kd),
+            ks: f32x8::splat(m.ks),
+            kr: f32x8::splat(m.kr),
+            shine: f32x8::splat(m.shine),
+        };
+        if others.none() {
+            return g;
+        }
+        let o = self.gather_lanes(r, hit, others);
+        let v = |a: Vec3x8, b: Vec3x8| Vec3x8::select(on_floor, a, b);
+        let f = |a: f32x8, b: f32x8| on_floor.select(a, b);
+        Gathered {
+            point: v(g.point, o.point),
+            normal: v(g.normal, o.normal),
+            flipped: g.flipped | o.flipped,
+            err: v(g.err, o.err),
+            color: v(g.color, o.color),
+            ka: f(g.ka, o.ka),
+            kd: f(g.kd, o.kd),
+            ks: f(g.ks, o.ks),
+            kr: f(g.kr, o.kr),
+            shine: f(g.shine, o.shine),
+        }
+    }
+
+    /// [`PacketRenderer::gather`] lane by lane, through [`PrimSet::surface_1`].
+    fn gather_lanes(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
         let mut point = [Vec3::ZERO; 8];
         let mut normal = [Vec3::Z; 8];
         let mut err = [Vec3::ZERO; 8];
@@ -447,10 +515,13 @@ impl PacketRenderer {
             let diffuse = g.kd * n_dot_l;
             let rv = r.dot(view).max(zero);
             // x^0 = 1 and 0^s = 0 (s > 0), as f64::powf
-            let spec = rv.gt(zero).select(
-                rv.powf_simd(g.shine),
-                g.shine.eq8(zero).select(f32x8::splat(1.0), zero),
-            );
+            let pow = match self.whole_shine {
+                Some(bits) => pow_whole(rv, g.shine, bits),
+                None => rv.powf_simd(g.shine),
+            };
+            let spec = rv
+                .gt(zero)
+                .select(pow, g.shine.eq8(zero).select(f32x8::splat(1.0), zero));
             let spec = g.shine.eq8(zero).select(f32x8::splat(1.0), spec);
             let w = diffuse + g.ks * spec;
             let add = (lc * g.color) * w;
@@ -678,6 +749,42 @@ impl PacketRenderer {
     }
 }
 
+/// `x^e` per lane by repeated squaring, for exponents `e` that are whole numbers
+/// below 2^`bits`: `bits` multiplies and selects, where `powf` takes a logarithm and
+/// an exponential.
+#[inline(always)]
+fn pow_whole(x: f32x8, e: f32x8, bits: u32) -> f32x8 {
+    let (mut acc, mut sq, mut e) = (f32x8::splat(1.0), x, e);
+    for k in 0..bits {
+        if k > 0 {
+            sq = sq * sq;
+        }
+        let half = (e * f32x8::splat(0.5)).floor();
+        acc = e.gt(half + half).select(acc * sq, acc);
+        e = half;
+    }
+    acc
+}
+
+/// Lanes at (x, y) (frame coordinates, `base` the frame's origin) on a white tile:
+/// [`Floor::color_at`] on four lanes at a time, in the same f64 operations.
+fn checker_white(x: f32x8, y: f32x8, base: DVec3) -> Mask8 {
+    let (x, y) = (x.to_array(), y.to_array());
+    let tile = |v: [f32; 4], b: f64| {
+        let w = f64x4::new(v.map(|c| c as f64)) + f64x4::splat(b);
+        ((w + f64x4::splat(Floor::HALF_WIDTH)) / f64x4::splat(Floor::TILE)).floor()
+    };
+    let mut bits = 0;
+    for h in 0..2 {
+        let quad = |a: &[f32; 8]| [a[4 * h], a[4 * h + 1], a[4 * h + 2], a[4 * h + 3]];
+        // i + j is an exact integer: tiles of the finite floor are a few hundred
+        let s = tile(quad(&x), base.x) + tile(quad(&y), base.y);
+        let odd = s - f64x4::splat(2.0) * (s * f64x4::splat(0.5)).floor();
+        bits |= odd.simd_eq(f64x4::ZERO).to_bitmask() << (4 * h);
+    }
+    Mask8::from_bits(bits)
+}
+
 /// Renders a frame on the packet path (builds the BVH centred on the camera first).
 pub fn render(scene: &Scene, settings: &RenderSettings) -> Rendered {
     let start = std::time::Instant::now();
@@ -691,6 +798,71 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> Rendered {
 mod tests {
     use super::*;
     use crate::render::reference;
+
+    #[test]
+    fn checker_lanes_match_color_at_at_tile_edges_and_off_origin() {
+        // points on, just beside and between tile edges, in frames far from the origin
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f64 / (1u64 << 24) as f64
+        };
+        for base in [
+            DVec3::ZERO,
+            DVec3::new(123.25, -77.5, 9.0),
+            DVec3::new(-480.0, 499.0, 0.0),
+        ] {
+            for _ in 0..200 {
+                let mut xs = [0.0f32; 8];
+                let mut ys = [0.0f32; 8];
+                for k in 0..8 {
+                    let edge = |r: f64| (r * 50.0).floor() * 20.0 - 500.0;
+                    let (x, y) = if k % 2 == 0 {
+                        (edge(rnd()), edge(rnd()) + (rnd() - 0.5) * 1e-3)
+                    } else {
+                        (rnd() * 1000.0 - 500.0, rnd() * 1000.0 - 500.0)
+                    };
+                    xs[k] = (x - base.x) as f32;
+                    ys[k] = (y - base.y) as f32;
+                }
+                let white = checker_white(f32x8::new(xs), f32x8::new(ys), base);
+                for k in 0..8 {
+                    let c = Floor::color_at(xs[k] as f64 + base.x, ys[k] as f64 + base.y);
+                    assert_eq!(
+                        white.lane(k),
+                        c == DVec3::ONE,
+                        "({}, {}) + {base}",
+                        xs[k],
+                        ys[k]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn whole_powers_by_squaring_match_powf() {
+        let x = f32x8::new([0.0, 1e-3, 0.1, 0.5, 0.7, 0.9, 0.999, 1.0]);
+        for e in [0u32, 1, 2, 3, 5, 10, 15, 16, 100, 255] {
+            let bits = u32::BITS - e.leading_zeros();
+            let got = pow_whole(x, f32x8::splat(e as f32), bits).to_array();
+            for (g, xv) in got.iter().zip(x.to_array()) {
+                let want = (xv as f64).powi(e as i32);
+                assert!(
+                    (*g as f64 - want).abs() <= want * 1e-5 + 1e-30,
+                    "{xv}^{e}: {g} against {want}"
+                );
+            }
+        }
+        // lanes with different exponents
+        let e = f32x8::new([0.0, 1.0, 2.0, 3.0, 4.0, 7.0, 8.0, 9.0]);
+        let got = pow_whole(f32x8::splat(0.5), e, 4).to_array();
+        for (g, k) in got.iter().zip(e.to_array()) {
+            assert_eq!(*g, 0.5f32.powi(k as i32));
+        }
+    }
 
     #[test]
     fn given_scene_matches_reference_closely() {
