@@ -518,3 +518,52 @@ fn meshes_are_hit_like_their_triangles() {
     let h = geometry::intersect_ref(&scene.objects[0].shape, &r, f64::INFINITY).unwrap();
     assert!((h.t - 3.0).abs() < 1e-12 && h.part == 0);
 }
+
+#[test]
+fn surfaces_of_a_primitive_on_eight_lanes_equal_the_single_ray_ones() {
+    // every kind in the BVH, plus unbounded quadrics, hit by coherent and mixed packets
+    let scene = common::generated_scene(600, 22);
+    let base = DVec3::new(100.0, 100.0, 50.0);
+    let bvh = Bvh::build(PrimSet::from_scene(&scene, base));
+    let mut rng = Rng(23);
+    let (mut checked, mut kinds) = (0, std::collections::BTreeSet::new());
+    for packet in 0..6000 {
+        let o = rng.vec_in(
+            DVec3::new(-100.0, -100.0, 1.0),
+            DVec3::new(100.0, 100.0, 60.0),
+        );
+        let target = rng.vec_in(
+            DVec3::new(-150.0, -150.0, 0.0),
+            DVec3::new(150.0, 150.0, 40.0),
+        );
+        let (mut os, mut ds) = ([Vec3::ZERO; 8], [Vec3::Z; 8]);
+        for k in 0..8 {
+            let d = if packet % 2 == 0 {
+                (target - o).normalize() + rng.unit() * 0.01
+            } else {
+                rng.unit()
+            };
+            os[k] = (o - base).as_vec3();
+            ds[k] = d.normalize().as_vec3();
+        }
+        let r = RayPacket8::from_lanes(&os, &ds);
+        let mut hit = HitPacket8::new(f32x8::splat(f32::INFINITY));
+        bvh.intersect_x8(&r, Mask8::ALL, &mut hit, &mut Steps::default());
+        let (t, u, v) = (hit.t.to_array(), hit.u.to_array(), hit.v.to_array());
+        for (i, &code) in hit.prim.to_array().iter().enumerate() {
+            let Some(s8) = bvh.prims.surface_x8(code, &r, hit.t, hit.u, hit.v) else {
+                continue; // the floor (its twin lives in the shading) or no hit
+            };
+            let s1 = bvh.prims.surface_1(code, &r.ray(i), t[i], u[i], v[i]);
+            let lane = |w: Vec3x8| w.lane(i).to_array().map(f32::to_bits);
+            let bits = |w: Vec3| w.to_array().map(f32::to_bits);
+            assert_eq!(lane(s8.point), bits(s1.point), "point, code {code:#x}");
+            assert_eq!(lane(s8.normal), bits(s1.normal), "normal, code {code:#x}");
+            assert_eq!(lane(s8.err), bits(s1.err), "error bound, code {code:#x}");
+            checked += 1;
+            kinds.insert(split_code(code).0 as u32);
+        }
+    }
+    assert!(checked > 5000, "{checked} lanes checked");
+    assert!(kinds.len() >= 3, "kinds hit: {kinds:?}");
+}

@@ -22,7 +22,7 @@ use wide::{f32x8, i32x8};
 
 use crate::bvh::Aabb;
 use crate::math::Ray;
-use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8};
+use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::scene::parse::is_degenerate_triangle;
 use crate::scene::{Scene, Shape};
 
@@ -119,6 +119,14 @@ pub struct Surface32 {
     pub point: Vec3,
     pub normal: Vec3,
     pub err: Vec3,
+}
+
+/// [`Surface32`] on eight lanes.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface8 {
+    pub point: Vec3x8,
+    pub normal: Vec3x8,
+    pub err: Vec3x8,
 }
 
 /// Primitive kinds of the fast path. A BVH leaf holds one kind, so it runs one kernel.
@@ -534,6 +542,27 @@ impl PrimSet {
     }
 
     /// Surface record of a hit, computed once for the winner.
+    /// [`PrimSet::surface_1`] of primitive `code` on all eight lanes of `r` (`t`, `u`,
+    /// `v` per lane), lane for lane the same operations; `None` for the floor, whose
+    /// packet twin lives with its shading.
+    pub fn surface_x8(
+        &self,
+        code: i32,
+        r: &RayPacket8,
+        t: f32x8,
+        u: f32x8,
+        v: f32x8,
+    ) -> Option<Surface8> {
+        let (kind, i) = split_code(code);
+        Some(match kind {
+            PrimKind::Sphere => self.spheres[i].surface_x8(r, t),
+            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].surface_x8(u, v),
+            PrimKind::Quadric => self.quadrics[i].surface_x8(r, t),
+            PrimKind::FreeQuadric => self.free_quadrics[i].surface_x8(r, t),
+            PrimKind::Floor => return None,
+        })
+    }
+
     pub fn surface_1(&self, code: i32, r: &Ray1, t: f32, u: f32, v: f32) -> Surface32 {
         let (kind, i) = split_code(code);
         match kind {

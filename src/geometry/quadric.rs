@@ -16,7 +16,7 @@ use glam::DVec3;
 use glam::Vec3;
 use wide::f32x8;
 
-use super::{Surface32, SurfacePoint};
+use super::{Surface8, Surface32, SurfacePoint};
 use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
@@ -377,6 +377,54 @@ impl Quadric32 {
         // the hit point o + t·d itself is off by about one rounding per component
         let err = Vec3::splat(dist) + (point.abs() + (r.dir * t).abs()) * gamma32(3);
         Surface32 { point, normal, err }
+    }
+
+    /// [`Quadric32::surface_1`] on eight lanes, operation for operation.
+    pub fn surface_x8(&self, r: &RayPacket8, t: f32x8) -> Surface8 {
+        let [a, b, c, d, e, f, g, h, i, j] = self.coef.map(f32x8::splat);
+        let dt = r.dir * t;
+        let point = r.origin + dt;
+        let (x, y, z) = (point.x, point.y, point.z);
+        let two = f32x8::splat(2.0);
+        let grad = Vec3x8::new(
+            two * a * x + d * y + e * z + g,
+            two * b * y + d * x + f * z + h,
+            two * c * z + e * x + f * y + i,
+        );
+        let glen = grad.length();
+        let ok = glen.gt(f32x8::ZERO) & glen.lt(f32x8::splat(f32::INFINITY));
+        let normal = Vec3x8::select(
+            ok,
+            Vec3x8::new(grad.x / glen, grad.y / glen, grad.z / glen),
+            -r.dir,
+        );
+        let magnitude = (a * x * x).abs()
+            + (b * y * y).abs()
+            + (c * z * z).abs()
+            + (d * x * y).abs()
+            + (e * x * z).abs()
+            + (f * y * z).abs()
+            + (g * x).abs()
+            + (h * y).abs()
+            + (i * z).abs()
+            + j.abs();
+        let value = a * x * x
+            + b * y * y
+            + c * z * z
+            + d * x * y
+            + e * x * z
+            + f * y * z
+            + g * x
+            + h * y
+            + i * z
+            + j;
+        let p = point.abs();
+        let dist = ok.select(
+            two * (value.abs() + f32x8::splat(gamma32(12)) * magnitude) / glen,
+            f32x8::splat(gamma32(16)) * p.x.max(p.y).max(p.z),
+        );
+        let err = Vec3x8::new(dist, dist, dist) + (p + dt.abs()) * f32x8::splat(gamma32(3));
+        Surface8 { point, normal, err }
     }
 }
 

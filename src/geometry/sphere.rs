@@ -9,7 +9,7 @@ use glam::DVec3;
 use glam::Vec3;
 use wide::f32x8;
 
-use super::{Surface32, SurfacePoint};
+use super::{Surface8, Surface32, SurfacePoint};
 use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
@@ -161,6 +161,20 @@ impl Sphere32 {
         let point = self.center + v;
         let err = (v.abs() + self.center.abs()) * gamma32(6);
         Surface32 { point, normal, err }
+    }
+
+    /// [`Sphere32::surface_1`] on eight lanes, operation for operation.
+    pub fn surface_x8(&self, r: &RayPacket8, t: f32x8) -> Surface8 {
+        let c = Vec3x8::splat(self.center);
+        let v = r.origin + r.dir * t - c;
+        // glam's normalize_or: 1/|v| finite and positive, else the fallback
+        let rcp = f32x8::splat(1.0) / v.length();
+        let ok = rcp.lt(f32x8::splat(f32::INFINITY)) & rcp.gt(f32x8::ZERO);
+        let normal = Vec3x8::select(ok, v * rcp, -r.dir);
+        let v = normal * f32x8::splat(self.radius);
+        let point = c + v;
+        let err = (v.abs() + c.abs()) * f32x8::splat(gamma32(6));
+        Surface8 { point, normal, err }
     }
 }
 

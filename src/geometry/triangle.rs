@@ -12,7 +12,7 @@ use glam::DVec3;
 use glam::Vec3;
 use wide::f32x8;
 
-use super::{RefHit, Surface32, SurfacePoint};
+use super::{RefHit, Surface8, Surface32, SurfacePoint};
 use crate::bvh::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
@@ -281,6 +281,23 @@ impl Triangle32 {
             .cross(self.v[2] - self.v[0])
             .normalize_or(Vec3::Z);
         Surface32 { point, normal, err }
+    }
+
+    /// [`Triangle32::surface_1`] on eight lanes, operation for operation.
+    pub fn surface_x8(&self, b1: f32x8, b2: f32x8) -> Surface8 {
+        let b0 = f32x8::splat(1.0) - b1 - b2;
+        let [a, b, c] = self.v.map(Vec3x8::splat);
+        let terms = [a * b0, b * b1, c * b2];
+        let point = terms[0] + terms[1] + terms[2];
+        let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * f32x8::splat(gamma32(7));
+        let normal = (self.v[1] - self.v[0])
+            .cross(self.v[2] - self.v[0])
+            .normalize_or(Vec3::Z);
+        Surface8 {
+            point,
+            normal: Vec3x8::splat(normal),
+            err,
+        }
     }
 }
 

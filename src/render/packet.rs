@@ -32,7 +32,7 @@ use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
-use crate::geometry::{Hit1, PrimKind, PrimSet, prim_code, split_code};
+use crate::geometry::{Hit1, PrimKind, PrimSet, Surface8, prim_code, split_code};
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
 };
@@ -405,52 +405,98 @@ impl PacketRenderer {
         }
     }
 
-    /// [`PacketRenderer::gather`] lane by lane, through [`PrimSet::surface_1`].
+    /// [`PacketRenderer::gather`] for lanes off the floor: lanes that share a primitive
+    /// (most of a coherent packet) take its surface in SIMD ([`PrimSet::surface_x8`]), a
+    /// lone lane its own ([`PrimSet::surface_1`]); the material is read per lane.
     fn gather_lanes(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
         let mut point = [Vec3::ZERO; 8];
         let mut normal = [Vec3::Z; 8];
         let mut err = [Vec3::ZERO; 8];
         let mut color = [Vec3::ZERO; 8];
         let mut k = [[0.0f32; 8]; 5];
-        let mut flipped = 0;
+        let mut simd: Option<(Mask8, Surface8)> = None;
         let (t, u, v) = (hit.t.as_array(), hit.u.as_array(), hit.v.as_array());
+        let codes = hit.prim.as_array();
         let mut bits = lanes.bits();
         while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let code = hit.prim_lane(i);
-            let ray = Ray1 {
-                origin: r.origin.lane(i),
-                dir: r.dir.lane(i),
-                ..Ray1::new(Vec3::ZERO, Vec3::Z)
-            };
-            let s = self.bvh.prims.surface_1(code, &ray, t[i], u[i], v[i]);
-            let (m, c) = if split_code(code).0 == PrimKind::Floor {
-                let w = s.point.as_dvec3() + self.base;
-                (&self.floor, Floor::color_at(w.x, w.y).as_vec3())
+            let code = codes[bits.trailing_zeros() as usize];
+            let mut same = 0;
+            for (i, &c) in codes.iter().enumerate() {
+                same |= ((c == code) as u32) << i;
+            }
+            same &= bits;
+            bits &= !same;
+            let surface = if same.count_ones() > 1 {
+                self.bvh.prims.surface_x8(code, r, hit.t, hit.u, hit.v)
             } else {
-                let m = &self.materials[self.bvh.prims.object(code) as usize];
-                (m, m.color)
+                None
             };
-            point[i] = s.point;
-            // every normal is flipped to face the incoming ray
-            normal[i] = if s.normal.dot(ray.dir) > 0.0 {
-                flipped |= 1 << i;
-                -s.normal
-            } else {
-                s.normal
-            };
-            err[i] = s.err;
-            color[i] = c;
-            for (kk, val) in k.iter_mut().zip([m.ka, m.kd, m.ks, m.kr, m.shine]) {
-                kk[i] = val;
+            let mut group = same;
+            if let Some(s) = surface {
+                let m = Mask8::from_bits(same);
+                simd = Some(match simd {
+                    None => (m, s),
+                    Some((old, o)) => (
+                        old | m,
+                        Surface8 {
+                            point: Vec3x8::select(m, s.point, o.point),
+                            normal: Vec3x8::select(m, s.normal, o.normal),
+                            err: Vec3x8::select(m, s.err, o.err),
+                        },
+                    ),
+                });
+            }
+            while group != 0 {
+                let i = group.trailing_zeros() as usize;
+                group &= group - 1;
+                let (m, c) = if surface.is_none() {
+                    let ray = Ray1 {
+                        origin: r.origin.lane(i),
+                        dir: r.dir.lane(i),
+                        ..Ray1::new(Vec3::ZERO, Vec3::Z)
+                    };
+                    let s = self.bvh.prims.surface_1(code, &ray, t[i], u[i], v[i]);
+                    (point[i], normal[i], err[i]) = (s.point, s.normal, s.err);
+                    if split_code(code).0 == PrimKind::Floor {
+                        let w = s.point.as_dvec3() + self.base;
+                        (&self.floor, Floor::color_at(w.x, w.y).as_vec3())
+                    } else {
+                        let m = &self.materials[self.bvh.prims.object(code) as usize];
+                        (m, m.color)
+                    }
+                } else {
+                    let m = &self.materials[self.bvh.prims.object(code) as usize];
+                    (m, m.color)
+                };
+                color[i] = c;
+                for (kk, val) in k.iter_mut().zip([m.ka, m.kd, m.ks, m.kr, m.shine]) {
+                    kk[i] = val;
+                }
             }
         }
-        Gathered {
+        let mut s = Surface8 {
             point: Vec3x8::from_lanes(&point),
             normal: Vec3x8::from_lanes(&normal),
-            flipped: Mask8::from_bits(flipped),
             err: Vec3x8::from_lanes(&err),
+        };
+        if let Some((m, o)) = simd {
+            s = if m.bits() == lanes.bits() {
+                o
+            } else {
+                Surface8 {
+                    point: Vec3x8::select(m, o.point, s.point),
+                    normal: Vec3x8::select(m, o.normal, s.normal),
+                    err: Vec3x8::select(m, o.err, s.err),
+                }
+            };
+        }
+        // every normal is turned to face the incoming ray
+        let flipped = lanes & s.normal.dot(r.dir).gt(f32x8::ZERO);
+        Gathered {
+            point: s.point,
+            normal: Vec3x8::select(flipped, -s.normal, s.normal),
+            flipped,
+            err: s.err,
             color: Vec3x8::from_lanes(&color),
             ka: f32x8::new(k[0]),
             kd: f32x8::new(k[1]),
