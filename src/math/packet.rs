@@ -289,7 +289,7 @@ pub struct RayPacket8 {
     /// Lanes whose largest |dir| component is x (kz = 0), resp. y (kz = 1); else z.
     pub kz_x: Mask8,
     pub kz_y: Mask8,
-    /// Shear of the watertight test: −d[kx]/d[kz], −d[ky]/d[kz], 1/d[kz].
+    /// Shear of the watertight test: −d[kx]·s, −d[ky]·s, s with s = 1/d[kz].
     pub shear: Vec3x8,
     /// The kz of every lane when they all share it (0, 1, 2), else 3: lets
     /// [`RayPacket8::permute`] move whole vectors instead of blending lane by lane.
@@ -337,8 +337,11 @@ impl RayPacket8 {
             },
             octant: 0,
         };
+        // |d[kz]| ≥ 1/√3 for a unit direction, so inv_dir[kz] is exactly 1/d[kz]; the
+        // shear takes it instead of dividing again (as Ray1::new, lane for lane)
         let d = p.permute(dir);
-        p.shear = Vec3x8::new(-d.x / d.z, -d.y / d.z, f32x8::splat(1.0) / d.z);
+        let inv_z = p.permute(p.inv_dir).z;
+        p.shear = Vec3x8::new(-d.x * inv_z, -d.y * inv_z, inv_z);
         let d0 = dir.lane(if bits == 0 {
             0
         } else {
@@ -414,7 +417,7 @@ pub struct Ray1 {
     pub inv_dir: Vec3,
     /// Axis of the largest |dir| component, and the two others (kx, ky) = (kz+1, kz+2) mod 3.
     pub kz: usize,
-    /// −d[kx]/d[kz], −d[ky]/d[kz], 1/d[kz].
+    /// −d[kx]·s, −d[ky]·s, s with s = 1/d[kz] (the watertight test's shear).
     pub shear: Vec3,
 }
 
@@ -431,7 +434,9 @@ impl Ray1 {
             2
         };
         let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        let shear = Vec3::new(-dir[kx] / dir[kz], -dir[ky] / dir[kz], 1.0 / dir[kz]);
+        // 1/d[kz] once (|d[kz]| ≥ 1/√3: inv_dir's own); multiplies, not divisions
+        let inv_z = inv_dir[kz];
+        let shear = Vec3::new(-dir[kx] * inv_z, -dir[ky] * inv_z, inv_z);
         Ray1 {
             origin,
             dir,
