@@ -176,6 +176,23 @@ impl PathState {
     }
 }
 
+/// Lights whose shadow packets [`PacketRenderer::phong`] sets up together.
+const SHADOW_BATCH: usize = 4;
+
+/// One light's shadow packet and what shading needs of it.
+#[derive(Clone, Copy, Debug)]
+struct ShadowRay {
+    /// Lanes the light can reach (cone, front side).
+    m: Mask8,
+    /// Unit direction to the light and its cosine with the normal.
+    l: Vec3x8,
+    n_dot_l: f32x8,
+    /// From the surface (offset) to the light, `len` long, over lanes `m_ray`.
+    ray: RayPacket8,
+    len: f32x8,
+    m_ray: Mask8,
+}
+
 /// The per-lane surface data a level's shading needs, gathered for the winners.
 struct Gathered {
     point: Vec3x8,
@@ -518,62 +535,93 @@ impl PacketRenderer {
     ) -> Vec3x8 {
         let zero = f32x8::ZERO;
         let mut out = g.color * g.ka;
-        let (p, n) = (g.point, g.normal);
-        for light in &self.lights {
-            let lp = Vec3x8::splat(light.position);
-            let mut m = lanes;
-            // spotlight only: skip lanes outside the cone (hard edge)
-            if let Some((axis, cos_cut)) = light.cone {
-                stats.cone_tests += m.count() as u64;
-                let w = p - lp;
-                let inside = Vec3x8::splat(axis)
-                    .dot(w)
-                    .ge(f32x8::splat(cos_cut) * w.length());
-                m = m & inside;
+        let n = g.normal;
+        // A few lights' shadow packets are set up before any is traced: their square
+        // roots and divisions then overlap instead of each waiting behind the previous
+        // light's (branchy) traversal.
+        for lights in self.lights.chunks(SHADOW_BATCH) {
+            let mut rays = [None; SHADOW_BATCH];
+            for (ray, light) in rays.iter_mut().zip(lights) {
+                *ray = self.shadow_ray::<EPS>(light, g, lanes, stats);
             }
-            let to_light = lp - p;
-            let dist = to_light.length();
-            m = m & dist.gt(zero);
-            let l = to_light * (f32x8::splat(1.0) / dist);
-            let n_dot_l = n.dot(l);
-            m = m & n_dot_l.gt(zero);
-            if m.none() {
-                continue;
+            for (ray, light) in rays.iter().zip(lights) {
+                let Some(s) = ray else { continue };
+                let blocked = if ANY_HIT {
+                    self.occluded(&s.ray, s.m_ray, s.len, steps)
+                } else {
+                    self.occluded_closest(&s.ray, s.m_ray, s.len, steps)
+                };
+                let lit = s.m.and_not(blocked);
+                if lit.none() {
+                    continue;
+                }
+                let r = n * (f32x8::splat(2.0) * s.n_dot_l) - s.l;
+                let lc = Vec3x8::splat(light.color);
+                let diffuse = g.kd * s.n_dot_l;
+                let rv = r.dot(view).max(zero);
+                // x^0 = 1 and 0^s = 0 (s > 0), as f64::powf
+                let pow = match self.whole_shine {
+                    Some(bits) => pow_whole(rv, g.shine, bits),
+                    None => rv.powf_simd(g.shine),
+                };
+                let spec = rv
+                    .gt(zero)
+                    .select(pow, g.shine.eq8(zero).select(f32x8::splat(1.0), zero));
+                let spec = g.shine.eq8(zero).select(f32x8::splat(1.0), spec);
+                let w = diffuse + g.ks * spec;
+                let add = (lc * g.color) * w;
+                out = out + Vec3x8::select(lit, add, Vec3x8::ZERO);
             }
-            // shadow: anything on the segment between the surface and the light
-            let origin = self.leave::<EPS>(p, g.err, n, l);
-            let seg = lp - origin;
-            let len = seg.length();
-            let m_ray = m & len.gt(zero);
-            stats.shadow_rays += m.count() as u64;
-            let shadow = RayPacket8::new(origin, seg * (f32x8::splat(1.0) / len), m_ray);
-            let blocked = if ANY_HIT {
-                self.occluded(&shadow, m_ray, len, steps)
-            } else {
-                self.occluded_closest(&shadow, m_ray, len, steps)
-            };
-            let lit = m.and_not(blocked);
-            if lit.none() {
-                continue;
-            }
-            let r = n * (f32x8::splat(2.0) * n_dot_l) - l;
-            let lc = Vec3x8::splat(light.color);
-            let diffuse = g.kd * n_dot_l;
-            let rv = r.dot(view).max(zero);
-            // x^0 = 1 and 0^s = 0 (s > 0), as f64::powf
-            let pow = match self.whole_shine {
-                Some(bits) => pow_whole(rv, g.shine, bits),
-                None => rv.powf_simd(g.shine),
-            };
-            let spec = rv
-                .gt(zero)
-                .select(pow, g.shine.eq8(zero).select(f32x8::splat(1.0), zero));
-            let spec = g.shine.eq8(zero).select(f32x8::splat(1.0), spec);
-            let w = diffuse + g.ks * spec;
-            let add = (lc * g.color) * w;
-            out = out + Vec3x8::select(lit, add, Vec3x8::ZERO);
         }
         out
+    }
+
+    /// The shadow packet towards `light` from the lanes it can light (inside its cone,
+    /// in front of the surface); `None` if there are none.
+    #[inline(always)]
+    fn shadow_ray<const EPS: bool>(
+        &self,
+        light: &Light32,
+        g: &Gathered,
+        lanes: Mask8,
+        stats: &mut RenderStats,
+    ) -> Option<ShadowRay> {
+        let zero = f32x8::ZERO;
+        let (p, n) = (g.point, g.normal);
+        let lp = Vec3x8::splat(light.position);
+        let mut m = lanes;
+        // spotlight only: skip lanes outside the cone (hard edge)
+        if let Some((axis, cos_cut)) = light.cone {
+            stats.cone_tests += m.count() as u64;
+            let w = p - lp;
+            let inside = Vec3x8::splat(axis)
+                .dot(w)
+                .ge(f32x8::splat(cos_cut) * w.length());
+            m = m & inside;
+        }
+        let to_light = lp - p;
+        let dist = to_light.length();
+        m = m & dist.gt(zero);
+        let l = to_light * (f32x8::splat(1.0) / dist);
+        let n_dot_l = n.dot(l);
+        m = m & n_dot_l.gt(zero);
+        if m.none() {
+            return None;
+        }
+        // shadow: anything on the segment between the surface and the light
+        let origin = self.leave::<EPS>(p, g.err, n, l);
+        let seg = lp - origin;
+        let len = seg.length();
+        let m_ray = m & len.gt(zero);
+        stats.shadow_rays += m.count() as u64;
+        Some(ShadowRay {
+            m,
+            l,
+            n_dot_l,
+            ray: RayPacket8::new(origin, seg * (f32x8::splat(1.0) / len), m_ray),
+            len,
+            m_ray,
+        })
     }
 
     /// The colours seen along a packet of camera rays (traced at level 1), each
