@@ -86,18 +86,7 @@ pub fn surface_ref(q: &Quadric, ray: &Ray, t: f64) -> SurfacePoint {
     } else {
         -ray.dir // singular point (a cone's apex): no normal; face the ray
     };
-    let [a, b, c, d, e, f, g, h, i, j] = q.coef;
-    let (x, y, z) = (point.x, point.y, point.z);
-    let magnitude = (a * x * x).abs()
-        + (b * y * y).abs()
-        + (c * z * z).abs()
-        + (d * x * y).abs()
-        + (e * x * z).abs()
-        + (f * y * z).abs()
-        + (g * x).abs()
-        + (h * y).abs()
-        + (i * z).abs()
-        + j.abs();
+    let magnitude = terms(q.coef, point.x, point.y, point.z, f64::abs);
     let dist = if glen > 0.0 && glen.is_finite() {
         2.0 * (q.value(point).abs() + gamma(12) * magnitude) / glen
     } else {
@@ -119,6 +108,27 @@ pub struct Quadric32 {
     /// Bounds of the surface when it is an ellipsoid (then it can live in the BVH even
     /// when the box leaves an axis unclipped).
     pub ellipsoid: Option<Aabb>,
+}
+
+/// The ten terms of F = Ax² + By² + Cz² + Dxy + Exz + Fyz + Gx + Hy + Iz + J at (x, y, z),
+/// each passed through `f` and summed in this order, in any precision: F itself (`f`
+/// the identity) or Σ|term| (`f` = abs), the scale of F's rounding error.
+#[inline(always)]
+fn terms<T>(k: [T; 10], x: T, y: T, z: T, f: impl Fn(T) -> T) -> T
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let [a, b, c, d, e, g, h, i, l, j] = k;
+    f(a * x * x)
+        + f(b * y * y)
+        + f(c * z * z)
+        + f(d * x * y)
+        + f(e * x * z)
+        + f(g * y * z)
+        + f(h * x)
+        + f(i * y)
+        + f(l * z)
+        + f(j)
 }
 
 /// Bounds of {F = 0} when the quadratic part M is definite (an ellipsoid): centre
@@ -207,17 +217,7 @@ impl Quadric32 {
     }
 
     fn value(&self, p: Vec3) -> f32 {
-        let [a, b, c, d, e, f, g, h, i, j] = self.coef;
-        a * p.x * p.x
-            + b * p.y * p.y
-            + c * p.z * p.z
-            + d * p.x * p.y
-            + e * p.x * p.z
-            + f * p.y * p.z
-            + g * p.x
-            + h * p.y
-            + i * p.z
-            + j
+        terms(self.coef, p.x, p.y, p.z, |t| t)
     }
 
     fn gradient(&self, p: Vec3) -> Vec3 {
@@ -357,18 +357,7 @@ impl Quadric32 {
         let glen = grad.length();
         let ok = glen > 0.0 && glen.is_finite();
         let normal = if ok { grad / glen } else { -r.dir };
-        let [a, b, c, d, e, f, g, h, i, j] = self.coef;
-        let (x, y, z) = (point.x, point.y, point.z);
-        let magnitude = (a * x * x).abs()
-            + (b * y * y).abs()
-            + (c * z * z).abs()
-            + (d * x * y).abs()
-            + (e * x * z).abs()
-            + (f * y * z).abs()
-            + (g * x).abs()
-            + (h * y).abs()
-            + (i * z).abs()
-            + j.abs();
+        let magnitude = terms(self.coef, point.x, point.y, point.z, f32::abs);
         let dist = if ok {
             2.0 * (self.value(point).abs() + gamma32(12) * magnitude) / glen
         } else {
@@ -381,7 +370,8 @@ impl Quadric32 {
 
     /// [`Quadric32::surface_1`] on eight lanes, operation for operation.
     pub fn surface_x8(&self, r: &RayPacket8, t: f32x8) -> Surface8 {
-        let [a, b, c, d, e, f, g, h, i, j] = self.coef.map(f32x8::splat);
+        let k = self.coef.map(f32x8::splat);
+        let [a, b, c, d, e, f, g, h, i, _] = k;
         let dt = r.dir * t;
         let point = r.origin + dt;
         let (x, y, z) = (point.x, point.y, point.z);
@@ -398,26 +388,8 @@ impl Quadric32 {
             Vec3x8::new(grad.x / glen, grad.y / glen, grad.z / glen),
             -r.dir,
         );
-        let magnitude = (a * x * x).abs()
-            + (b * y * y).abs()
-            + (c * z * z).abs()
-            + (d * x * y).abs()
-            + (e * x * z).abs()
-            + (f * y * z).abs()
-            + (g * x).abs()
-            + (h * y).abs()
-            + (i * z).abs()
-            + j.abs();
-        let value = a * x * x
-            + b * y * y
-            + c * z * z
-            + d * x * y
-            + e * x * z
-            + f * y * z
-            + g * x
-            + h * y
-            + i * z
-            + j;
+        let magnitude = terms(k, x, y, z, f32x8::abs);
+        let value = terms(k, x, y, z, |t| t);
         let p = point.abs();
         let dist = ok.select(
             two * (value.abs() + f32x8::splat(gamma32(12)) * magnitude) / glen,
