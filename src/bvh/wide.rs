@@ -6,6 +6,10 @@
 //! left; O(n), every binary node is opened at most once). A binary subtree of at most
 //! [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, becomes one
 //! leaf: full blocks of [`Triangle8`] for triangles instead of several nearly empty ones.
+//! A node with room left then opens such merged leaves too (largest area first) where
+//! the two halves take no more blocks than the whole: tighter boxes at no cost in
+//! blocks. Without this, 2210 of torus100k's 3711 wide nodes had two slots, each a
+//! leaf of 9 to 16 triangles (two blocks) that every ray meeting it tested whole.
 //! The slot boxes are the binary nodes' boxes, bit for bit, so a slot's slab test gives
 //! the same answer the binary traversal gets for that subtree.
 //!
@@ -79,7 +83,8 @@ const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 /// monotone under box containment, so passing the leaf's box implies passing every
 /// ancestor's). Without it, the larger merged box let the wide walk find hits the
 /// binary and packet walks miss (a ray lying in a box face with a ±0 direction
-/// component, see `math::packet`), so packet lanes and single rays differed.
+/// component, see `math::packet`), so packet lanes and single rays differed. A block
+/// of one binary leaf (`one_leaf`) has the slot's own box in every lane, already passed.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriBlock {
@@ -87,6 +92,9 @@ pub struct TriBlock {
     pub bounds: [f32x8; 6],
     pub first: u32,
     pub count: u32,
+    /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
+    /// walk then skips the lane boxes (three cache lines) on a hit.
+    pub one_leaf: bool,
 }
 
 const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
@@ -104,19 +112,32 @@ pub struct WideBvh {
 pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
 
 /// Subtree summary of a binary node, 8 B: its primitives are `first..first + count` of
-/// one kind (`count | kind << 28` in `meta`), or `meta` == [`Span::MIXED`].
+/// one kind (`count | kind << 28` in `meta`), or `meta` == [`Span::MIXED`]. Bit 31 of
+/// `first_split`: the two children's runs take no more triangle blocks than this one
+/// (always for other kinds, never for a binary leaf); bits 0..31: `first`.
 #[derive(Clone, Copy)]
 struct Span {
-    first: u32,
+    first_split: u32,
     meta: u32,
 }
 
 impl Span {
     const MIXED: u32 = u32::MAX;
+    const SPLIT: u32 = 1 << 31;
 
     #[inline]
     fn count(self) -> u32 {
         self.meta & COUNT_MASK
+    }
+
+    #[inline]
+    fn first(self) -> u32 {
+        self.first_split & !Span::SPLIT
+    }
+
+    #[inline]
+    fn free_split(self) -> bool {
+        self.first_split & Span::SPLIT != 0
     }
 }
 
@@ -143,7 +164,7 @@ impl WideBvh {
         // their parent in the array, so a reverse sweep sees children first)
         let mut span = vec![
             Span {
-                first: 0,
+                first_split: 0,
                 meta: Span::MIXED,
             };
             nodes.len()
@@ -151,28 +172,35 @@ impl WideBvh {
         for i in (0..nodes.len()).rev() {
             let n = &nodes[i];
             span[i] = if n.is_leaf() {
+                debug_assert!(n.first < Span::SPLIT);
                 Span {
-                    first: n.first,
+                    first_split: n.first,
                     meta: n.meta,
                 }
             } else {
                 let l = n.first as usize;
                 let (a, b) = (span[l], span[l + 1]);
-                let (lo, hi) = if a.first <= b.first { (a, b) } else { (b, a) };
+                let (lo, hi) = if a.first() <= b.first() {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
                 let count = a.count() + b.count();
                 if a.meta != Span::MIXED
                     && b.meta != Span::MIXED
                     && a.meta >> 28 == b.meta >> 28
-                    && lo.first + lo.count() == hi.first
+                    && lo.first() + lo.count() == hi.first()
                     && count <= COUNT_MASK
                 {
+                    let free = a.meta >> 28 != PrimKind::Triangle as u32
+                        || a.count().div_ceil(8) + b.count().div_ceil(8) <= count.div_ceil(8);
                     Span {
-                        first: lo.first,
+                        first_split: lo.first() | if free { Span::SPLIT } else { 0 },
                         meta: count | (a.meta >> 28) << 28,
                     }
                 } else {
                     Span {
-                        first: 0,
+                        first_split: 0,
                         meta: Span::MIXED,
                     }
                 }
@@ -198,19 +226,46 @@ impl WideBvh {
             ([l, l + 1, 0, 0, 0, 0, 0, 0], 2)
         };
         work.push((0, root.0, root.1));
+        // a slot may be opened when it is interior, or a merged leaf whose two halves
+        // take no more triangle blocks than it does (tighter boxes for free)
+        let can_open = |i: usize| -> bool {
+            let s = span[i];
+            s.meta == Span::MIXED
+                || if nodes[i].is_leaf() {
+                    false
+                } else {
+                    s.count() > MERGE_MAX || s.free_split()
+                }
+        };
         while let Some((wi, mut kids, mut n)) = work.pop() {
-            // open the interior child with the largest surface area while there is room
+            // open the openable child with the largest surface area while there is room
             // (on equal areas the last such slot, as `Iterator::max_by`)
             let mut area = [f32::NEG_INFINITY; 8];
             let mut open = [false; 8];
+            let mut can = [false; 8];
+            // the children of an openable slot are likely read next: start loading them
+            // (the binary nodes and spans are tens of MB on large meshes, so each read
+            // here is a cache miss)
+            let ahead = |k: usize| {
+                let c = nodes[k].first as usize;
+                if let (Some(n), Some(s)) = (nodes.get(c), span.get(c)) {
+                    prefetch_lines(n);
+                    prefetch_lines(s);
+                }
+            };
+            // (areas only matter for openable slots)
             for s in 0..n {
                 open[s] = !as_leaf(kids[s] as usize);
-                area[s] = nodes[kids[s] as usize].bounds().area();
+                can[s] = can_open(kids[s] as usize);
+                if can[s] {
+                    area[s] = nodes[kids[s] as usize].bounds().area();
+                    ahead(kids[s] as usize);
+                }
             }
             while n < 8 {
                 let mut best = usize::MAX;
                 for s in 0..n {
-                    if open[s] && (best == usize::MAX || area[s].total_cmp(&area[best]).is_ge()) {
+                    if can[s] && (best == usize::MAX || area[s].total_cmp(&area[best]).is_ge()) {
                         best = s;
                     }
                 }
@@ -221,7 +276,11 @@ impl WideBvh {
                 for (s, k) in [(best, l), (n, l + 1)] {
                     kids[s] = k;
                     open[s] = !as_leaf(k as usize);
-                    area[s] = nodes[k as usize].bounds().area();
+                    can[s] = can_open(k as usize);
+                    if can[s] {
+                        area[s] = nodes[k as usize].bounds().area();
+                        ahead(k as usize);
+                    }
                 }
                 n += 1;
             }
@@ -249,14 +308,14 @@ impl WideBvh {
                     node.child[slot] = if s.meta >> 28 == PrimKind::Triangle as u32 {
                         tri_slots.push(TriSlot {
                             node: k,
-                            first: s.first,
+                            first: s.first(),
                             count: s.count(),
                         });
                         let b0 = n_blocks;
                         n_blocks += s.count().div_ceil(8);
                         b0
                     } else {
-                        s.first
+                        s.first()
                     };
                 }
             }
@@ -265,7 +324,35 @@ impl WideBvh {
         }
         drop(span);
         w.blocks = huge_vec(n_blocks as usize);
-        for t in tri_slots {
+        for (i, &t) in tri_slots.iter().enumerate() {
+            // a few slots ahead: their binary node (its subtree's boxes) and triangles
+            if let Some(a) = tri_slots.get(i + 4) {
+                prefetch_lines(&nodes[a.node as usize]);
+                let (f, c) = (a.first as usize, a.count as usize);
+                if let Some(tris) = prims.triangles.get(f..f + c) {
+                    let bytes = std::mem::size_of_val(tris);
+                    let p = tris.as_ptr().cast::<u8>();
+                    for off in (0..bytes).step_by(64) {
+                        // SAFETY: `off` < the slice's size in bytes, so in bounds.
+                        prefetch_lines(unsafe { &*p.add(off) });
+                    }
+                }
+            }
+            // two slots ahead, a merged subtree's nodes: the builder allocates a subtree
+            // depth first, so its 2·leaves − 2 descendants follow `first` contiguously
+            // (a hint only: another order costs time, not results)
+            if let Some(a) = tri_slots.get(i + 2) {
+                let r = &nodes[a.node as usize];
+                if !r.is_leaf() {
+                    let lo = r.first as usize;
+                    let hi = (lo + 2 * a.count as usize - 2).min(nodes.len());
+                    let p = nodes.as_ptr().cast::<u8>();
+                    for off in (lo * 32..hi * 32).step_by(64) {
+                        // SAFETY: `off` < nodes.len() · 32 bytes, so in bounds.
+                        prefetch_lines(unsafe { &*p.add(off) });
+                    }
+                }
+            }
             w.push_blocks(nodes, prims, t);
         }
         debug_assert_eq!(w.blocks.len(), n_blocks as usize);
@@ -338,10 +425,11 @@ impl WideBvh {
                 lanes[k]
             };
             self.blocks.push(TriBlock {
-                tri: Triangle8::new(chunk),
+                tri: block_triangles(chunk),
                 bounds: bounds.map(f32x8::new),
                 first: t.first + 8 * k as u32,
                 count: chunk.len() as u32,
+                one_leaf: root.is_leaf(),
             });
         }
     }
@@ -390,6 +478,27 @@ impl WideBvh {
             }
         }
         best
+    }
+}
+
+/// `Triangle8::new(tris)` (1 to 8 triangles; padding lanes repeat the first vertex
+/// three times), the same floats written lane by lane (the general constructor was
+/// 2.6 % of bench-trace torus1m's perf samples beside the collapse's own 7.2 %).
+#[inline]
+#[allow(clippy::needless_range_loop)] // `lane` indexes the innermost arrays
+fn block_triangles(tris: &[crate::geometry::triangle::Triangle32]) -> Triangle8 {
+    let pad = tris[0].v[0];
+    let mut v = [[[0.0f32; 8]; 3]; 3];
+    for lane in 0..8 {
+        let t = tris.get(lane).map_or([pad; 3], |t| t.v);
+        for (vi, p) in t.iter().enumerate() {
+            v[vi][0][lane] = p.x;
+            v[vi][1][lane] = p.y;
+            v[vi][2][lane] = p.z;
+        }
+    }
+    Triangle8 {
+        v: v.map(|q| q.map(f32x8::new)),
     }
 }
 
@@ -656,7 +765,17 @@ impl Bvh {
             if m.none() {
                 continue;
             }
-            let mut bits = (m & wr.boxes.test(&b.bounds, hit.t).0).bits();
+            // a block of one binary leaf: every lane's box is the slot's, which the ray
+            // has passed (with a t_max >= hit.t, and a hit lies in front of hit.t)
+            // Measured: bench-trace torus100k mode=1, one process alternating with and
+            // without this 16 times at load 4.6-5.5, wall min / q1 / median: incoherent
+            // 386 / 585 / 713 ms against 449 / 652 / 766; primary 160 / 192 / 203
+            // against 177 / 194 / 203; same hits and sum of t.
+            let mut bits = if b.one_leaf {
+                m.bits()
+            } else {
+                (m & wr.boxes.test(&b.bounds, hit.t).0).bits()
+            };
             if bits == 0 {
                 continue;
             }
@@ -742,7 +861,7 @@ impl Bvh {
             .iter()
             .any(|b| {
                 let m = b.tri.occluded_1x8(&wr.tris, Mask8::ALL, t_max);
-                m.any() && (m & wr.boxes.test(&b.bounds, t_max).0).any()
+                m.any() && (b.one_leaf || (m & wr.boxes.test(&b.bounds, t_max).0).any())
             })
     }
 }
