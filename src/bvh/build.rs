@@ -19,14 +19,15 @@
 //! perf profile of build and collapse before).
 
 use glam::Vec4;
-use wide::{f32x4, i32x4};
+use wide::{f32x4, f32x8, i32x4};
 
 use super::node::{Aabb, BvhNode};
 use super::wide::huge_vec;
 use crate::geometry::{PrimKind, PrimSet};
 
-/// Bins per axis.
-const BINS: usize = 16;
+/// Bins per axis at most (Embree's count); a range of n references uses
+/// `bin_count(n)` of them.
+const BINS: usize = 32;
 /// Largest leaf (primitives).
 pub const MAX_LEAF: usize = 8;
 /// Cost of one box test relative to one primitive test.
@@ -36,55 +37,100 @@ const SAMPLE: usize = 4096;
 /// Depth past which ranges are halved instead of SAH-split.
 const MEDIAN_DEPTH: usize = 48;
 
-/// A primitive reference during the build, 32 bytes: `lo.w` holds the index's bits,
-/// `hi.w` the kind's. Centroids are `lo + hi` (twice the centre; only the x, y, z
-/// lanes are ever read).
+/// The bits of 1.0: the index and the kind of a reference are stored as the floats
+/// whose bits are this plus them, so every lane of a reference is a normal number
+/// (no denormal ever enters the arithmetic on whole boxes).
+const ONE: u32 = 0x3f80_0000;
+const SIGN: u32 = 0x8000_0000;
+
+/// A box as eight lanes `[lo.x, lo.y, lo.z, _, −hi.x, −hi.y, −hi.z, _]`: the union of
+/// two is one `min`.
+type Box8 = f32x8;
+const EMPTY8: Box8 = f32x8::splat(f32::INFINITY);
+
+/// A primitive reference during the build, 32 bytes: its box as a [`Box8`], with
+/// the index in lane 3 and the kind in lane 7 (see [`ONE`]).
 #[derive(Clone, Copy, Debug)]
-#[repr(C)]
-struct Ref {
-    lo: Vec4,
-    hi: Vec4,
-}
+#[repr(C, align(32))]
+struct Ref([f32; 8]);
 
 impl Ref {
+    fn new(b: &Aabb, index: usize, kind: u32) -> Ref {
+        debug_assert!(index < (1 << 30));
+        Ref([
+            b.lo.x,
+            b.lo.y,
+            b.lo.z,
+            f32::from_bits(ONE + index as u32),
+            -b.hi.x,
+            -b.hi.y,
+            -b.hi.z,
+            f32::from_bits((ONE + kind) | SIGN),
+        ])
+    }
     #[inline]
     fn index(&self) -> usize {
-        self.lo.w.to_bits() as usize
+        (self.0[3].to_bits() - ONE) as usize
     }
     #[inline]
     fn kind(&self) -> u32 {
-        self.hi.w.to_bits()
+        (self.0[7].to_bits() & !SIGN) - ONE
     }
     #[inline]
+    fn boxed(&self) -> Box8 {
+        f32x8::from(self.0)
+    }
+    /// Twice the centre (x, y, z lanes).
+    #[inline]
     fn centroid2(&self) -> Vec4 {
-        self.lo + self.hi
+        Vec4::from_slice(&self.0[..4]) - Vec4::from_slice(&self.0[4..])
+    }
+    /// Twice the centre on one axis.
+    #[inline]
+    fn centroid2_on(&self, axis: usize) -> f32 {
+        self.0[axis] - self.0[axis + 4]
+    }
+    /// Twice the centre as a box of no extent.
+    #[inline]
+    fn centroid_box(&self) -> Box8 {
+        let a = self.0;
+        f32x8::from(a) - f32x8::from([a[4], a[5], a[6], a[7], a[0], a[1], a[2], a[3]])
     }
 }
 
-/// Bounds and centroid bounds of a range (x, y, z lanes only).
+/// The lower and upper corner of a [`Box8`] (x, y, z lanes).
+#[inline]
+fn corners(b: Box8) -> (Vec4, Vec4) {
+    let a = b.to_array();
+    (Vec4::from_slice(&a[..4]), -Vec4::from_slice(&a[4..]))
+}
+
+/// Half the surface area of a [`Box8`] (infinite when empty).
+#[inline]
+fn half_area(b: Box8) -> f32 {
+    let a = b.to_array();
+    // minus the extents
+    let d = Vec4::from_slice(&a[..4]) + Vec4::from_slice(&a[4..]);
+    d.x * d.y + d.y * d.z + d.z * d.x
+}
+
+/// Bounds and centroid bounds of a range.
 #[derive(Clone, Copy, Debug)]
 struct Bounds {
-    lo: Vec4,
-    hi: Vec4,
-    clo: Vec4,
-    chi: Vec4,
+    geo: Box8,
+    cen: Box8,
 }
 
 impl Bounds {
     const EMPTY: Bounds = Bounds {
-        lo: Vec4::INFINITY,
-        hi: Vec4::NEG_INFINITY,
-        clo: Vec4::INFINITY,
-        chi: Vec4::NEG_INFINITY,
+        geo: EMPTY8,
+        cen: EMPTY8,
     };
 
     #[inline]
     fn add(&mut self, r: &Ref) {
-        self.lo = self.lo.min(r.lo);
-        self.hi = self.hi.max(r.hi);
-        let c = r.centroid2();
-        self.clo = self.clo.min(c);
-        self.chi = self.chi.max(c);
+        self.geo = self.geo.fast_min(r.boxed());
+        self.cen = self.cen.fast_min(r.centroid_box());
     }
 
     fn of(part: &[Ref]) -> Bounds {
@@ -95,16 +141,29 @@ impl Bounds {
         b
     }
 
-    fn aabb(&self) -> Aabb {
-        Aabb::new(self.lo.truncate(), self.hi.truncate())
+    /// The centroid bounds of `part`, the bounds `geo` (known).
+    fn with_geo(part: &[Ref], geo: Box8) -> Bounds {
+        let mut cen = EMPTY8;
+        for r in part {
+            cen = cen.fast_min(r.centroid_box());
+        }
+        Bounds { geo, cen }
     }
-}
 
-/// Half the surface area of a box (x, y, z lanes).
-#[inline]
-fn half_area(lo: Vec4, hi: Vec4) -> f32 {
-    let d = hi - lo;
-    d.x * d.y + d.y * d.z + d.z * d.x
+    fn aabb(&self) -> Aabb {
+        let (lo, hi) = corners(self.geo);
+        Aabb::new(lo.truncate(), hi.truncate())
+    }
+
+    /// The extent of the centroids (x, y, z lanes).
+    fn centroid_extent(&self) -> Vec4 {
+        let (lo, hi) = corners(self.cen);
+        hi - lo
+    }
+
+    fn centroid_lo(&self) -> Vec4 {
+        corners(self.cen).0
+    }
 }
 
 /// Builds the node array over the BVH kinds of `prims` and reorders those kinds'
@@ -122,11 +181,7 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     let mut root = Bounds::EMPTY;
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
-            let b = prims.bounds(kind, i);
-            let r = Ref {
-                lo: b.lo.extend(f32::from_bits(i as u32)),
-                hi: b.hi.extend(f32::from_bits(kind as u32)),
-            };
+            let r = Ref::new(&prims.bounds(kind, i), i, kind as u32);
             root.add(&r);
             refs.push(r);
         }
@@ -143,56 +198,56 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     // leaves are found in order of `start` (depth first, left before right) and
     // cover the references in order, so a leaf's primitives will start at the count
     // of its kind in the leaves before it
-    let mut next = [0u32; 8]; // by kind code (PrimKind as u32 < 8)
-    #[cfg(debug_assertions)]
-    let mut covered = 0usize;
+    let mut leaves = Leaves {
+        next: [0; 8],
+        #[cfg(debug_assertions)]
+        covered: 0,
+    };
     let mut tasks = Vec::with_capacity(2 * MEDIAN_DEPTH);
     tasks.push((0u32, 0usize, total, 0usize, root));
     while let Some((ni, start, end, depth, b)) = tasks.pop() {
         let part = &mut refs[start..end];
         let n = part.len();
         let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind() != part[0].kind());
+        if n <= SMALL && !mixed {
+            small_subtree(part, b.geo, ni as usize, start, &mut nodes, &mut leaves);
+            continue;
+        }
         let (mid, axis, lb, rb) = match choose_split(part, &b, depth) {
             Split::Leaf if !mixed => {
-                #[cfg(debug_assertions)]
-                {
-                    assert_eq!(covered, start, "leaves out of reference order");
-                    covered = end;
-                }
-                let k = part[0].kind();
-                let first = next[k as usize];
-                next[k as usize] += n as u32;
-                let kind = PrimKind::from_u32(k);
-                nodes[ni as usize] = BvhNode::leaf(b.aabb(), first, n as u32, kind);
+                nodes[ni as usize] = leaves.leaf(part, start, b.geo);
                 continue;
             }
             Split::Leaf => {
                 // one kind per leaf: split off the first kind
                 let k = part[0].kind();
                 let (mid, lb, rb) = partition(part, |r| r.kind() == k);
-                (mid, widest_axis(b.chi - b.clo), lb, rb)
+                (mid, widest_axis(b.centroid_extent()), lb, rb)
             }
-            Split::At(axis, bin, scale, base) => {
+            Split::At(s) => {
                 // c's bin (as in `bin_split`: (c − base) · scale truncated, at most
                 // the last bin) is below `bin` ⟺ (c − base) · scale < bin: the
                 // product is >= 0 (base is the least centroid) and `bin` is at most
                 // the last bin, so neither the truncation nor the clamp changes the
                 // comparison (was a saturating float-to-int cast per reference)
-                let bin = bin as f32;
-                let left = |r: &Ref| (r.centroid2()[axis] - base) * scale < bin;
+                let (axis, bin, base, scale) = (s.axis, s.bin as f32, s.base, s.scale);
+                let left = |r: &Ref| (r.centroid2_on(axis) - base) * scale < bin;
                 // Tried: the branchless partition on every range: thread CPU time of
                 // the torus1m build 408, 431, 389 ms on ranges <= SAMPLE only; 449,
                 // 468, 466 on all (SAH 52.26, the tree changes slightly).
-                let (mid, lb, rb) = if n <= SAMPLE {
-                    partition_branchless(part, left)
-                } else {
-                    partition(part, left)
+                let (mid, lb, rb) = match s.sides {
+                    Some((lgeo, rgeo)) => {
+                        let mid = partition_branchless(part, left);
+                        let (l, r) = part.split_at(mid);
+                        (mid, Bounds::with_geo(l, lgeo), Bounds::with_geo(r, rgeo))
+                    }
+                    None => partition(part, left),
                 };
                 (mid, axis, lb, rb)
             }
             Split::Half(axis) => {
                 part.select_nth_unstable_by(n / 2, |a, b| {
-                    a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
+                    a.centroid2_on(axis).total_cmp(&b.centroid2_on(axis))
                 });
                 let (l, r) = part.split_at(n / 2);
                 (n / 2, axis, Bounds::of(l), Bounds::of(r))
@@ -230,6 +285,115 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     nodes
 }
 
+/// Leaf primitive offsets: leaves are made in reference order, so a leaf's
+/// primitives start at the count of its kind in the leaves before it.
+struct Leaves {
+    /// By kind code (PrimKind as u32 < 8).
+    next: [u32; 8],
+    #[cfg(debug_assertions)]
+    covered: usize,
+}
+
+impl Leaves {
+    /// The leaf over `part` (one kind), which starts at reference `start`.
+    #[inline]
+    fn leaf(&mut self, part: &[Ref], start: usize, geo: Box8) -> BvhNode {
+        #[cfg(debug_assertions)]
+        {
+            assert_eq!(self.covered, start, "leaves out of reference order");
+            self.covered = start + part.len();
+        }
+        #[cfg(not(debug_assertions))]
+        let _ = start;
+        let k = part[0].kind();
+        let first = self.next[k as usize];
+        self.next[k as usize] += part.len() as u32;
+        let (lo, hi) = corners(geo);
+        BvhNode::leaf(
+            Aabb::new(lo.truncate(), hi.truncate()),
+            first,
+            part.len() as u32,
+            PrimKind::from_u32(k),
+        )
+    }
+}
+
+/// Ranges of at most this many references (of one kind) are split exhaustively.
+const SMALL: usize = 4;
+
+/// The subtree of a range of 1 ..= `SMALL` references of one kind, bounds `geo`, at
+/// node `ni`: each node takes the cheapest of all 2^(n−1) − 1 partitions into two
+/// non-empty sets (not only those by a plane), or is a leaf when that is not cheaper
+/// (the SAH rule of `bin_split`); the references are reordered so the left set comes
+/// first. The split axis kept for the packet walk's near-first order is that of the
+/// largest distance between the children's centres, the lower child on the left.
+fn small_subtree(
+    part: &mut [Ref],
+    geo: Box8,
+    ni: usize,
+    start: usize,
+    nodes: &mut Vec<BvhNode>,
+    leaves: &mut Leaves,
+) {
+    let n = part.len();
+    debug_assert!((1..=SMALL).contains(&n));
+    if n == 1 {
+        nodes[ni] = leaves.leaf(part, start, geo);
+        return;
+    }
+    let full = (1usize << n) - 1;
+    // the box and half area of every subset
+    let mut sub = [EMPTY8; 1 << SMALL];
+    let mut area = [0.0f32; 1 << SMALL];
+    for m in 1..=full {
+        sub[m] = sub[m & (m - 1)].fast_min(part[m.trailing_zeros() as usize].boxed());
+        area[m] = half_area(sub[m]);
+    }
+    // the partitions: the sets with reference 0 against the rest
+    let mut best = (f32::INFINITY, 0usize);
+    for m in (1..full).step_by(2) {
+        let c = m ^ full;
+        let cost = area[m] * m.count_ones() as f32 + area[c] * c.count_ones() as f32;
+        if cost < best.0 {
+            best = (cost, m);
+        }
+    }
+    let node_area = area[full].max(f32::MIN_POSITIVE);
+    if C_TRAVERSE + best.0 / node_area >= n as f32 {
+        nodes[ni] = leaves.leaf(part, start, geo);
+        return;
+    }
+    let (mut l, mut r) = (best.1, best.1 ^ full);
+    // the centres' distance (twice)
+    let (cl, cr) = (corners(sub[l]), corners(sub[r]));
+    let d = (cr.0 + cr.1) - (cl.0 + cl.1);
+    let axis = widest_axis(d.abs());
+    if d[axis] < 0.0 {
+        std::mem::swap(&mut l, &mut r);
+    }
+    // reorder: the left set first, each set in its order
+    let mut tmp = [part[0]; SMALL];
+    tmp[..n].copy_from_slice(part);
+    let mut j = 0;
+    for set in [l, r] {
+        for (i, t) in tmp.iter().enumerate().take(n) {
+            if set >> i & 1 != 0 {
+                part[j] = *t;
+                j += 1;
+            }
+        }
+    }
+    let mid = l.count_ones() as usize;
+    let left = nodes.len();
+    nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+    nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+    let (lo, hi) = corners(geo);
+    nodes[ni] = BvhNode::interior(Aabb::new(lo.truncate(), hi.truncate()), left as u32, axis);
+    let (lp, rp) = part.split_at_mut(mid);
+    small_subtree(lp, sub[l], left, start, nodes, leaves);
+    small_subtree(rp, sub[r], left + 1, start + mid, nodes, leaves);
+}
+
 fn widest_axis(extent: Vec4) -> usize {
     if extent.x >= extent.y && extent.x >= extent.z {
         0
@@ -240,35 +404,50 @@ fn widest_axis(extent: Vec4) -> usize {
     }
 }
 
+/// A split by bins: the references whose centroid (twice the centre) on `axis`
+/// falls in a bin below `bin` go left; the bin of c is (c − base) · scale truncated.
+struct BinSplit {
+    axis: usize,
+    bin: usize,
+    scale: f32,
+    base: f32,
+    /// The bounds of both sides, when every reference was binned.
+    sides: Option<(Box8, Box8)>,
+}
+
 enum Split {
     Leaf,
-    /// Axis, first bin of the right side, bin scale, bin base.
-    At(usize, usize, f32, f32),
+    At(BinSplit),
     Half(usize),
+}
+
+/// Bins used for a range of `n` references: Embree's 4 + n/20, at most `BINS`.
+#[inline]
+fn bin_count(n: usize) -> usize {
+    (4 + n / 20).min(BINS)
 }
 
 /// Per-axis bins: bounds and counts.
 struct Bins<const B: usize> {
-    lo: [[Vec4; B]; 3],
-    hi: [[Vec4; B]; 3],
+    b: [[Box8; B]; 3],
     n: [[u32; B]; 3],
 }
 
 impl<const B: usize> Bins<B> {
+    #[inline]
     fn new() -> Self {
         Bins {
-            lo: [[Vec4::INFINITY; B]; 3],
-            hi: [[Vec4::NEG_INFINITY; B]; 3],
+            b: [[EMPTY8; B]; 3],
             n: [[0; B]; 3],
         }
     }
 
     #[inline]
     fn add(&mut self, r: &Ref, k: [i32; 4]) {
+        let rb = r.boxed();
         for (axis, &k) in k.iter().take(3).enumerate() {
             let k = k as usize;
-            self.lo[axis][k] = self.lo[axis][k].min(r.lo);
-            self.hi[axis][k] = self.hi[axis][k].max(r.hi);
+            self.b[axis][k] = self.b[axis][k].fast_min(rb);
             self.n[axis][k] += 1;
         }
     }
@@ -276,7 +455,7 @@ impl<const B: usize> Bins<B> {
 
 fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
     let n = part.len();
-    let extent = b.chi - b.clo;
+    let extent = b.centroid_extent();
     let widest = widest_axis(extent);
     if n <= 1 {
         return Split::Leaf;
@@ -296,11 +475,15 @@ fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
     }
     // nb = min(n, B) bins are used: the smaller B, the fewer bins are cleared
     if n <= 4 {
-        bin_split::<4>(part, b)
+        bin_split::<4>(part, b, n)
     } else if n <= MAX_LEAF {
-        bin_split::<MAX_LEAF>(part, b)
+        bin_split::<MAX_LEAF>(part, b, n)
+    } else if n <= 80 {
+        bin_split::<8>(part, b, bin_count(n))
+    } else if n <= 240 {
+        bin_split::<16>(part, b, bin_count(n))
     } else {
-        bin_split::<BINS>(part, b)
+        bin_split::<BINS>(part, b, bin_count(n))
     }
 }
 
@@ -309,30 +492,39 @@ fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
 /// one reference per side, at the same cost on every such axis, and the first such
 /// axis wins. Same result as `bin_split::<MAX_LEAF>`, bit for bit.
 fn pair_split(part: &[Ref], b: &Bounds) -> Split {
-    let extent = b.chi - b.clo;
+    let extent = b.centroid_extent();
     let (l, r) = (&part[0], &part[1]);
-    let cost = half_area(l.lo, l.hi) + half_area(r.lo, r.hi);
-    let node_area = half_area(b.lo, b.hi).max(f32::MIN_POSITIVE);
+    let cost = half_area(l.boxed()) + half_area(r.boxed());
+    let node_area = half_area(b.geo).max(f32::MIN_POSITIVE);
     if C_TRAVERSE + cost / node_area >= 2.0 {
         return Split::Leaf;
     }
     let axis = (0..3).find(|&a| extent[a] > 0.0).expect("centroids differ");
     let scale = 2.0f32 * (1.0 - 1e-6) / extent[axis];
-    Split::At(axis, 1, scale, b.clo[axis])
+    let (l, r) = if l.centroid2_on(axis) < r.centroid2_on(axis) {
+        (l, r)
+    } else {
+        (r, l)
+    };
+    Split::At(BinSplit {
+        axis,
+        bin: 1,
+        scale,
+        base: b.centroid_lo()[axis],
+        sides: Some((l.boxed(), r.boxed())),
+    })
 }
 
-/// The cheapest SAH split over min(n, B) bins per axis, or a leaf.
+/// The cheapest SAH split over `nb` <= B bins per axis, or a leaf.
 #[inline]
-fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
+fn bin_split<const B: usize>(part: &[Ref], b: &Bounds, nb: usize) -> Split {
     let n = part.len();
-    let extent = b.chi - b.clo;
+    let extent = b.centroid_extent();
     let widest = widest_axis(extent);
-    // no more bins than primitives: the many small ranges (half the calls are final
-    // leaves of a few primitives) sweep a few bins
-    let nb = n.min(B);
+    debug_assert!(nb <= B);
     let scale = Vec4::splat(nb as f32 * (1.0 - 1e-6)) / extent;
     let scale = Vec4::select(extent.cmpgt(Vec4::ZERO), scale, Vec4::ZERO);
-    let base = b.clo;
+    let base = b.centroid_lo();
     // the bin on each axis: (c − base) · scale truncated, at most nb − 1 (never
     // negative: base is the least centroid). One SIMD truncation for three axes.
     let top = i32x4::splat(nb as i32 - 1);
@@ -350,36 +542,37 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
         bins.add(r, bin(r));
         sampled += 1;
     }
-    let mut best = (f32::INFINITY, 0, 0);
+    // (cost, axis, bin, left box, right box)
+    let mut best = (f32::INFINITY, 0, 0, EMPTY8, EMPTY8);
     for axis in 0..3 {
         if extent[axis] <= 0.0 {
             continue;
         }
-        let (blo, bhi, bn) = (&bins.lo[axis], &bins.hi[axis], &bins.n[axis]);
-        // sweep from the right: cost of the right side of each boundary
+        let (bb, bn) = (&bins.b[axis], &bins.n[axis]);
+        // sweep from the right: cost and box of the right side of each boundary
         let mut right_cost = [0.0f32; B];
-        let (mut rlo, mut rhi, mut rn) = (Vec4::INFINITY, Vec4::NEG_INFINITY, 0u32);
+        let mut right_box = [EMPTY8; B];
+        let (mut rb, mut rn) = (EMPTY8, 0u32);
         for k in (1..nb).rev() {
-            rlo = rlo.min(blo[k]);
-            rhi = rhi.max(bhi[k]);
+            rb = rb.fast_min(bb[k]);
             rn += bn[k];
+            right_box[k] = rb;
             right_cost[k] = if rn > 0 {
-                half_area(rlo, rhi) * rn as f32
+                half_area(rb) * rn as f32
             } else {
                 0.0
             };
         }
-        let (mut llo, mut lhi, mut ln) = (Vec4::INFINITY, Vec4::NEG_INFINITY, 0u32);
+        let (mut lb, mut ln) = (EMPTY8, 0u32);
         for k in 1..nb {
-            llo = llo.min(blo[k - 1]);
-            lhi = lhi.max(bhi[k - 1]);
+            lb = lb.fast_min(bb[k - 1]);
             ln += bn[k - 1];
             if ln == 0 || ln as usize == sampled {
                 continue;
             }
-            let cost = half_area(llo, lhi) * ln as f32 + right_cost[k];
+            let cost = half_area(lb) * ln as f32 + right_cost[k];
             if cost < best.0 {
-                best = (cost, axis, k);
+                best = (cost, axis, k, lb, right_box[k]);
             }
         }
     }
@@ -390,13 +583,19 @@ fn bin_split<const B: usize>(part: &[Ref], b: &Bounds) -> Split {
             Split::Half(widest)
         };
     }
-    let node_area = half_area(b.lo, b.hi).max(f32::MIN_POSITIVE);
+    let node_area = half_area(b.geo).max(f32::MIN_POSITIVE);
     let split_cost = C_TRAVERSE + best.0 / node_area;
     if n <= MAX_LEAF && split_cost >= n as f32 {
         return Split::Leaf;
     }
     let axis = best.1;
-    Split::At(axis, best.2, scale[axis], base[axis])
+    Split::At(BinSplit {
+        axis,
+        bin: best.2,
+        scale: scale[axis],
+        base: base[axis],
+        sides: (stride == 1).then_some((best.3, best.4)),
+    })
 }
 
 /// Moves the refs satisfying `left` to the front; returns their count and the
@@ -448,11 +647,11 @@ fn gather<T: Copy>(refs: &[Ref], kind: PrimKind, from: &[T]) -> Vec<T> {
 /// Moves the refs satisfying `left` to the front without a branch on `left` (Lomuto:
 /// each ref swaps with the one just past the left side, which then grows by one if
 /// the ref belongs left; on ranges that fit the cache the swaps cost less than the
-/// mispredicted branches), then bounds both sides; returns the left count and the
-/// bounds. Torus1m build, thread CPU time, interleaved with the
-/// branching `partition` on every range: 455/458, 439/449, 358/473 ms.
+/// mispredicted branches); returns the left count. Torus1m build, thread CPU time,
+/// interleaved with the branching `partition` on every range: 455/458, 439/449,
+/// 358/473 ms.
 #[inline]
-fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, Bounds) {
+fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
     let mut j = 0;
     for i in 0..part.len() {
         let r = part[i];
@@ -461,5 +660,5 @@ fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize
         part[j] = r;
         j += is_left as usize;
     }
-    (j, Bounds::of(&part[..j]), Bounds::of(&part[j..]))
+    j
 }
