@@ -330,11 +330,11 @@ impl WideBvh {
                 prefetch_lines(&nodes[a.node as usize]);
                 let (f, c) = (a.first as usize, a.count as usize);
                 if let Some(tris) = prims.triangles.get(f..f + c) {
-                    let bytes = std::mem::size_of_val(tris);
-                    let p = tris.as_ptr().cast::<u8>();
-                    for off in (0..bytes).step_by(64) {
-                        // SAFETY: `off` < the slice's size in bytes, so in bounds.
-                        prefetch_lines(unsafe { &*p.add(off) });
+                    // every cache line of them (a line holds at least one whole triangle
+                    // or the start of one)
+                    let per_line = (64 / std::mem::size_of_val(&tris[0])).max(1);
+                    for t in tris.iter().step_by(per_line) {
+                        prefetch_lines(t);
                     }
                 }
             }
@@ -346,10 +346,9 @@ impl WideBvh {
                 if !r.is_leaf() {
                     let lo = r.first as usize;
                     let hi = (lo + 2 * a.count as usize - 2).min(nodes.len());
-                    let p = nodes.as_ptr().cast::<u8>();
-                    for off in (lo * 32..hi * 32).step_by(64) {
-                        // SAFETY: `off` < nodes.len() · 32 bytes, so in bounds.
-                        prefetch_lines(unsafe { &*p.add(off) });
+                    // 32-byte nodes: every other one starts a cache line
+                    for n in nodes[lo.min(hi)..hi].iter().step_by(2) {
+                        prefetch_lines(n);
                     }
                 }
             }
