@@ -1,8 +1,8 @@
 //! Binned SAH build (Wald 2007): a flat node array, children of a node adjacent,
 //! leaves of one primitive kind.
 //!
-//! Each split tries `BINS` bins per axis over the centroid bounds and takes the
-//! cheapest by the surface area heuristic, cost = C_T + Σ A(child)/A(node) · C_I · n;
+//! Each split tries `bin_count(n)` bins per axis (Embree's 4 + n/20, at most `BINS`)
+//! over the centroid bounds and takes the cheapest by the surface area heuristic, cost = C_T + Σ A(child)/A(node) · C_I · n;
 //! a range becomes a leaf when that is not cheaper than C_I · n and n <= `MAX_LEAF`.
 //! A range whose centroids all coincide is halved. A leaf with several kinds is
 //! split by kind. Beyond depth `MEDIAN_DEPTH` splits are halvings, so the depth stays
@@ -12,7 +12,8 @@
 //! references (bounds with index and kind in the spare lanes). Above `SAMPLE`
 //! references the partition computes both children's bounds and centroid bounds on
 //! the way (the range streams from memory once); at or below, it is branchless and
-//! the bounds are a second pass over the (cached) range. Ranges of two skip the bins.
+//! the bounds are a second pass over the (cached) range. Ranges of at most `SMALL`
+//! references of one kind skip the bins: every split into two sets is tried.
 //! Primitives are reordered into leaf order once, at the end, by one gather. Each pair
 //! of children sits on one 64-byte cache line (node 1 may be an unreachable pad for
 //! that). The large arrays are in huge pages (kernel page-fault work was ~20 % of a
