@@ -2,18 +2,20 @@
 //! leaves of one primitive kind.
 //!
 //! Each split tries `bin_count(n)` bins per axis (Embree's 4 + n/20, at most `BINS`)
-//! over the centroid bounds and takes the cheapest by the surface area heuristic, cost = C_T + Σ A(child)/A(node) · C_I · n;
-//! a range becomes a leaf when that is not cheaper than C_I · n and n <= `MAX_LEAF`.
-//! A range whose centroids all coincide is halved. A leaf with several kinds is
-//! split by kind. Beyond depth `MEDIAN_DEPTH` splits are halvings, so the depth stays
-//! below the traversal stack size.
+//! over the centroid bounds and takes the cheapest by the surface area heuristic,
+//! cost = C_T + Σ A(child)/A(node) · C_I · n; a range becomes a leaf when that is not
+//! cheaper than C_I · n and n <= `MAX_LEAF`. A range whose centroids all coincide is
+//! halved. A leaf with several kinds is split by kind. Beyond depth `MEDIAN_DEPTH`
+//! splits are halvings, so the depth stays below the traversal stack size.
 //!
 //! Work per node: one binning pass and one in-place partition pass over 32-byte
-//! references (bounds with index and kind in the spare lanes). Above `SAMPLE`
-//! references the partition computes both children's bounds and centroid bounds on
-//! the way (the range streams from memory once); at or below, it is branchless and
-//! the bounds are a second pass over the (cached) range. Ranges of at most `SMALL`
-//! references of one kind skip the bins: every split into two sets is tried.
+//! references (a box as [lo, −hi] in 8 lanes, index and kind in the spare ones).
+//! Ranges below 2 · `SAMPLE` bin every reference, so the children's boxes come from
+//! the SAH sweep and the partition is branchless (the centroid bounds are a second
+//! pass over the cached range); larger ranges bin a sample and their partition
+//! computes both children's bounds on the way (the range streams from memory once).
+//! Ranges of at most `SMALL` references of one kind skip the bins: every split into
+//! two sets is tried.
 //! Primitives are reordered into leaf order once, at the end, by one gather. Each pair
 //! of children sits on one 64-byte cache line (node 1 may be an unreachable pad for
 //! that). The large arrays are in huge pages (kernel page-fault work was ~20 % of a
@@ -474,7 +476,7 @@ fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
     if n == 2 {
         return pair_split(part, b);
     }
-    // nb = min(n, B) bins are used: the smaller B, the fewer bins are cleared
+    // bin_count(n) bins are used: the smaller B, the fewer bins are cleared
     if n <= 4 {
         bin_split::<4>(part, b, n)
     } else if n <= MAX_LEAF {
@@ -491,7 +493,8 @@ fn choose_split(part: &[Ref], b: &Bounds, depth: usize) -> Split {
 /// `bin_split` of two references, without bins: on every
 /// axis where the centroids differ they fall in bins 0 and 1, so the one candidate is
 /// one reference per side, at the same cost on every such axis, and the first such
-/// axis wins. Same result as `bin_split::<MAX_LEAF>`, bit for bit.
+/// axis wins. Same result as binning the pair, bit for bit. (Ranges of one kind up to
+/// `SMALL` are split exhaustively before; this serves pairs of two kinds.)
 fn pair_split(part: &[Ref], b: &Bounds) -> Split {
     let extent = b.centroid_extent();
     let (l, r) = (&part[0], &part[1]);

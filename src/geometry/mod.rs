@@ -541,10 +541,9 @@ impl PrimSet {
         })
     }
 
-    /// Surface record of a hit, computed once for the winner.
     /// [`PrimSet::surface_1`] of primitive `code` on all eight lanes of `r` (`t`, `u`,
     /// `v` per lane), lane for lane the same operations; `None` for the floor, whose
-    /// packet twin lives with its shading.
+    /// packet twin lives with its shading, and for −1 (no hit).
     pub fn surface_x8(
         &self,
         code: i32,
@@ -563,6 +562,7 @@ impl PrimSet {
         })
     }
 
+    /// Surface record of a hit, computed once for the winner.
     pub fn surface_1(&self, code: i32, r: &Ray1, t: f32, u: f32, v: f32) -> Surface32 {
         let (kind, i) = split_code(code);
         match kind {

@@ -393,7 +393,7 @@ impl Quadric32 {
         let p = point.abs();
         let dist = ok.select(
             two * (value.abs() + f32x8::splat(gamma32(12)) * magnitude) / glen,
-            f32x8::splat(gamma32(16)) * p.x.max(p.y).max(p.z),
+            f32x8::splat(gamma32(16)) * p.x.max(p.y.max(p.z)),
         );
         let err = Vec3x8::new(dist, dist, dist) + (p + dt.abs()) * f32x8::splat(gamma32(3));
         Surface8 { point, normal, err }

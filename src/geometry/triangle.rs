@@ -316,7 +316,7 @@ impl Triangle32 {
 pub struct TriRay8 {
     /// Origin components (o[kx], o[ky], o[kz]).
     pub origin: [f32x8; 3],
-    /// −d[kx]/d[kz], −d[ky]/d[kz], 1/d[kz].
+    /// −d[kx]·s, −d[ky]·s, s with s = 1/d[kz].
     pub shear: [f32x8; 3],
     /// (kx, ky, kz): the axes read as x, y, z.
     pub axes: [usize; 3],

@@ -337,8 +337,9 @@ impl RayPacket8 {
             },
             octant: 0,
         };
-        // |d[kz]| ≥ 1/√3 for a unit direction, so inv_dir[kz] is exactly 1/d[kz]; the
-        // shear takes it instead of dividing again (as Ray1::new, lane for lane)
+        // inv_dir[kz] is exactly 1/d[kz] whenever |d[kz]| ≥ MIN_DIR (1/√3 or more for
+        // a unit direction; only a zero direction falls below): the shear takes it
+        // instead of dividing again (as Ray1::new, lane for lane)
         let d = p.permute(dir);
         let inv_z = p.permute(p.inv_dir).z;
         p.shear = Vec3x8::new(-d.x * inv_z, -d.y * inv_z, inv_z);
@@ -434,7 +435,8 @@ impl Ray1 {
             2
         };
         let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        // 1/d[kz] once (|d[kz]| ≥ 1/√3: inv_dir's own); multiplies, not divisions
+        // 1/d[kz] once: inv_dir's own when |d[kz]| ≥ MIN_DIR (every direction but a zero
+        // one, which no caller builds); multiplies, not divisions
         let inv_z = inv_dir[kz];
         let shear = Vec3::new(-dir[kx] * inv_z, -dir[ky] * inv_z, inv_z);
         Ray1 {

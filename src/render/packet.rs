@@ -861,7 +861,8 @@ fn pow_whole(x: f32x8, e: f32x8, bits: u32) -> f32x8 {
 }
 
 /// Lanes at (x, y) (frame coordinates, `base` the frame's origin) on a white tile:
-/// [`Floor::color_at`] on four lanes at a time, in the same f64 operations.
+/// [`Floor::color_at`] on four lanes at a time, in f64: the same tile indices, whose
+/// parity is taken exactly while they are below 2^53 (every point of the floor).
 fn checker_white(x: f32x8, y: f32x8, base: DVec3) -> Mask8 {
     let (x, y) = (x.to_array(), y.to_array());
     let tile = |v: [f32; 4], b: f64| {
@@ -937,15 +938,78 @@ mod tests {
     }
 
     #[test]
+    fn simd_gather_equals_the_per_lane_surfaces() {
+        // packets mixing floor, shared-primitive, lone and missing lanes, in a frame off
+        // the origin
+        let scene = Scene::given();
+        let base = DVec3::new(100.0, 100.0, 50.0);
+        let r = PacketRenderer::new(&scene, base);
+        let mut seed = 11u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+        };
+        let (mut floor_lanes, mut other_lanes, mut mixed) = (0, 0, 0);
+        for packet in 0..4000 {
+            let spread = if packet % 2 == 0 { 0.05 } else { 2.0 };
+            let aim = Vec3::new(-1.0 + rnd() * 0.6, -1.0 + rnd() * 0.6, -0.3 + rnd() * 0.6);
+            let d: [Vec3; 8] = std::array::from_fn(|_| {
+                (aim + Vec3::new(rnd(), rnd(), rnd()) * spread).normalize()
+            });
+            let ray = RayPacket8::from_lanes(&[Vec3::ZERO; 8], &d);
+            let hit = r.closest(&ray, Mask8::ALL, &mut Steps::default());
+            let lanes = hit.hit_mask();
+            let g = r.gather(&ray, &hit, lanes);
+            let (t, u, v) = (hit.t.to_array(), hit.u.to_array(), hit.v.to_array());
+            let (mut on_floor, mut off_floor) = (false, false);
+            for i in (0..8).filter(|&i| lanes.lane(i)) {
+                let code = hit.prim_lane(i);
+                let s = r.bvh.prims.surface_1(code, &ray.ray(i), t[i], u[i], v[i]);
+                let flip = s.normal.dot(d[i]) > 0.0;
+                let (m, c) = if split_code(code).0 == PrimKind::Floor {
+                    on_floor = true;
+                    floor_lanes += 1;
+                    let w = s.point.as_dvec3() + base;
+                    (&r.floor, Floor::color_at(w.x, w.y).as_vec3())
+                } else {
+                    off_floor = true;
+                    other_lanes += 1;
+                    let m = &r.materials[r.bvh.prims.object(code) as usize];
+                    (m, m.color)
+                };
+                let bits = |w: Vec3| w.to_array().map(f32::to_bits);
+                assert_eq!(bits(g.point.lane(i)), bits(s.point), "point, lane {i}");
+                let n = if flip { -s.normal } else { s.normal };
+                assert_eq!(bits(g.normal.lane(i)), bits(n), "normal, lane {i}");
+                assert_eq!(g.flipped.lane(i), flip, "flipped, lane {i}");
+                assert_eq!(bits(g.err.lane(i)), bits(s.err), "error bound, lane {i}");
+                assert_eq!(g.color.lane(i), c, "colour, lane {i}");
+                let k = [g.ka, g.kd, g.ks, g.kr, g.shine].map(|k| k.to_array()[i]);
+                assert_eq!(k, [m.ka, m.kd, m.ks, m.kr, m.shine], "material, lane {i}");
+            }
+            assert!(
+                !g.flipped.and_not(lanes).any(),
+                "flipped outside the hit lanes"
+            );
+            mixed += (on_floor && off_floor) as u32;
+        }
+        assert!(floor_lanes > 1000 && other_lanes > 1000 && mixed > 100);
+    }
+
+    #[test]
     fn whole_powers_by_squaring_match_powf() {
         let x = f32x8::new([0.0, 1e-3, 0.1, 0.5, 0.7, 0.9, 0.999, 1.0]);
         for e in [0u32, 1, 2, 3, 5, 10, 15, 16, 100, 255] {
             let bits = u32::BITS - e.leading_zeros();
             let got = pow_whole(x, f32x8::splat(e as f32), bits).to_array();
             for (g, xv) in got.iter().zip(x.to_array()) {
+                // relative, down to where f32 goes subnormal
                 let want = (xv as f64).powi(e as i32);
+                let tol = want.max(f32::MIN_POSITIVE as f64) * 1e-5;
                 assert!(
-                    (*g as f64 - want).abs() <= want * 1e-5 + 1e-30,
+                    (*g as f64 - want).abs() <= tol,
                     "{xv}^{e}: {g} against {want}"
                 );
             }
