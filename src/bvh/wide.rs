@@ -424,7 +424,7 @@ impl WideBvh {
                 lanes[k]
             };
             self.blocks.push(TriBlock {
-                tri: block_triangles(chunk),
+                tri: Triangle8::new(chunk),
                 bounds: bounds.map(f32x8::new),
                 first: t.first + 8 * k as u32,
                 count: chunk.len() as u32,
@@ -477,27 +477,6 @@ impl WideBvh {
             }
         }
         best
-    }
-}
-
-/// `Triangle8::new(tris)` (1 to 8 triangles; padding lanes repeat the first vertex
-/// three times), the same floats written lane by lane (the general constructor was
-/// 2.6 % of bench-trace torus1m's perf samples beside the collapse's own 7.2 %).
-#[inline]
-#[allow(clippy::needless_range_loop)] // `lane` indexes the innermost arrays
-fn block_triangles(tris: &[crate::geometry::triangle::Triangle32]) -> Triangle8 {
-    let pad = tris[0].v[0];
-    let mut v = [[[0.0f32; 8]; 3]; 3];
-    for lane in 0..8 {
-        let t = tris.get(lane).map_or([pad; 3], |t| t.v);
-        for (vi, p) in t.iter().enumerate() {
-            v[vi][0][lane] = p.x;
-            v[vi][1][lane] = p.y;
-            v[vi][2][lane] = p.z;
-        }
-    }
-    Triangle8 {
-        v: v.map(|q| q.map(f32x8::new)),
     }
 }
 

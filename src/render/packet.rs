@@ -463,10 +463,17 @@ impl PacketRenderer {
                     ),
                 });
             }
+            // one primitive, one material (the floor's colour is per point)
+            let on_floor = split_code(code).0 == PrimKind::Floor;
+            let m = if on_floor {
+                &self.floor
+            } else {
+                &self.materials[self.bvh.prims.object(code) as usize]
+            };
             while group != 0 {
                 let i = group.trailing_zeros() as usize;
                 group &= group - 1;
-                let (m, c) = if surface.is_none() {
+                if surface.is_none() {
                     let ray = Ray1 {
                         origin: r.origin.lane(i),
                         dir: r.dir.lane(i),
@@ -474,18 +481,14 @@ impl PacketRenderer {
                     };
                     let s = self.bvh.prims.surface_1(code, &ray, t[i], u[i], v[i]);
                     (point[i], normal[i], err[i]) = (s.point, s.normal, s.err);
-                    if split_code(code).0 == PrimKind::Floor {
-                        let w = s.point.as_dvec3() + self.base;
-                        (&self.floor, Floor::color_at(w.x, w.y).as_vec3())
-                    } else {
-                        let m = &self.materials[self.bvh.prims.object(code) as usize];
-                        (m, m.color)
-                    }
+                }
+                color[i] = if on_floor {
+                    // (floor lanes never take the SIMD surface: point[i] is set)
+                    let w = point[i].as_dvec3() + self.base;
+                    Floor::color_at(w.x, w.y).as_vec3()
                 } else {
-                    let m = &self.materials[self.bvh.prims.object(code) as usize];
-                    (m, m.color)
+                    m.color
                 };
-                color[i] = c;
                 for (kk, val) in k.iter_mut().zip([m.ka, m.kd, m.ks, m.kr, m.shine]) {
                     kk[i] = val;
                 }
