@@ -14,7 +14,7 @@
 use glam::DVec3;
 
 use glam::Vec3;
-use wide::f32x8;
+use wide::{f32x8, f64x8};
 
 use super::{Surface8, Surface32, SurfacePoint};
 use crate::bvh::Aabb;
@@ -96,13 +96,29 @@ pub fn surface_ref(q: &Quadric, ray: &Ray, t: f64) -> SurfacePoint {
     SurfacePoint { point, normal, err }
 }
 
-// ---------------------------------------------------------------- fast path (f32)
+// ------------------------------------------------- fast path (f32 rays, f64 roots)
 
-/// A quadric in the fast path's f32 frame: coefficients of F(x + base), renormalised
-/// by their largest magnitude, and the clipping box (±∞ on unclipped axes).
+/// A quadric of the fast path: f32 rays in, f32 distances and surfaces out, solved in
+/// f64: the coefficients of F(x + base), renormalised by their largest magnitude, and
+/// the clipping box (±∞ on unclipped axes).
+///
+/// Why f64: along a ray, c = F(o) grows as |o|² while b² − 4ac stays of the quadric's
+/// own size, so in f32 the discriminant is lost to cancellation when a ray starts far
+/// from a small quadric. Shadow rays from a floor hundreds of units away that passed a
+/// cylinder of radius 0.03 at 12–36 % of its radius still hit it: 141 of 4096 pixels
+/// off, max 30/255, in `fast` and `accurate` at 64² (an independent renderer of the spec
+/// found it; `tests/extremes.rs` keeps the case). An f32 ray is exact in f64, so the
+/// roots are as good as the reference's for that ray, and the surface's error bound,
+/// evaluated in f64 at the hit point, measures the point's own distance from the surface
+/// instead of f32's rounding of F far from the origin. Both kernels convert, compute and
+/// round lane for lane alike, so packet and single ray stay bit-equal.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quadric32 {
-    pub coef: [f32; 10],
+    pub coef: [f64; 10],
+    /// The clipping box, relative to base, in f64 (the root rule).
+    pub box_lo: DVec3,
+    pub box_hi: DVec3,
+    /// The clipping box rounded outwards to f32 (bounds).
     pub lo: Vec3,
     pub hi: Vec3,
     /// Bounds of the surface when it is an ellipsoid (then it can live in the BVH even
@@ -174,6 +190,75 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     ))
 }
 
+/// Arithmetic shared by the single-ray (f64) and packet (f64x8) quadric kernels, so
+/// that both evaluate the same expressions in the same order.
+trait Lanes:
+    Copy + std::ops::Add<Output = Self> + std::ops::Sub<Output = Self> + std::ops::Mul<Output = Self>
+{
+    fn k(v: f64) -> Self;
+}
+
+impl Lanes for f64 {
+    #[inline(always)]
+    fn k(v: f64) -> f64 {
+        v
+    }
+}
+
+impl Lanes for f64x8 {
+    #[inline(always)]
+    fn k(v: f64) -> f64x8 {
+        f64x8::splat(v)
+    }
+}
+
+/// ∇F at p.
+#[inline(always)]
+fn gradient<T: Lanes>(k: &[f64; 10], p: [T; 3]) -> [T; 3] {
+    let c = |i: usize| T::k(k[i]);
+    let two = T::k(2.0);
+    let [x, y, z] = p;
+    [
+        two * c(0) * x + c(3) * y + c(4) * z + c(6),
+        two * c(1) * y + c(3) * x + c(5) * z + c(7),
+        two * c(2) * z + c(4) * x + c(5) * y + c(8),
+    ]
+}
+
+/// a, b and c of F(o + t·d) = a·t² + b·t + c.
+#[inline(always)]
+fn along<T: Lanes>(k: &[f64; 10], o: [T; 3], d: [T; 3]) -> (T, T, T) {
+    let c = |i: usize| T::k(k[i]);
+    let [dx, dy, dz] = d;
+    let a = c(0) * dx * dx
+        + c(1) * dy * dy
+        + c(2) * dz * dz
+        + c(3) * dx * dy
+        + c(4) * dx * dz
+        + c(5) * dy * dz;
+    let g = gradient(k, o);
+    let b = g[0] * dx + g[1] * dy + g[2] * dz;
+    (a, b, terms(k.map(T::k), o[0], o[1], o[2], |t| t))
+}
+
+/// The eight lanes of `v` in f64 (exact).
+#[inline(always)]
+fn widen(v: f32x8) -> f64x8 {
+    f64x8::new(v.to_array().map(f64::from))
+}
+
+/// The eight lanes of `v` rounded to f32 (to nearest, as `as f32`).
+#[inline(always)]
+fn narrow(v: f64x8) -> f32x8 {
+    f32x8::new(v.to_array().map(|x| x as f32))
+}
+
+/// `e` as an f32 no smaller than it (`as f32` may round down by half an ulp).
+#[inline(always)]
+fn up32(e: f64) -> f32 {
+    e as f32 * (1.0 + f32::EPSILON)
+}
+
 impl Quadric32 {
     /// From scene data, translated so that `base` is the origin (in f64, then rounded).
     pub fn new(q: &Quadric, base: DVec3) -> Quadric32 {
@@ -196,8 +281,18 @@ impl Quadric32 {
             }
         };
         let (x, y, z) = (axis(0), axis(1), axis(2));
+        let exact = |i: usize| {
+            if q.size[i] == 0.0 {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            } else {
+                (q.min[i] - base[i], q.min[i] + q.size[i] - base[i])
+            }
+        };
+        let (ex, ey, ez) = (exact(0), exact(1), exact(2));
         Quadric32 {
-            coef: k.map(|v| v as f32),
+            coef: k,
+            box_lo: DVec3::new(ex.0, ey.0, ez.0),
+            box_hi: DVec3::new(ex.1, ey.1, ez.1),
             lo: Vec3::new(x.0, y.0, z.0),
             hi: Vec3::new(x.1, y.1, z.1),
             ellipsoid: ellipsoid_bounds(&k),
@@ -216,39 +311,19 @@ impl Quadric32 {
         (lo.is_finite() && hi.is_finite()).then(|| Aabb::new(lo.min(hi), hi))
     }
 
-    fn value(&self, p: Vec3) -> f32 {
-        terms(self.coef, p.x, p.y, p.z, |t| t)
-    }
-
-    fn gradient(&self, p: Vec3) -> Vec3 {
-        let [a, b, c, d, e, f, g, h, i, _] = self.coef;
-        Vec3::new(
-            2.0 * a * p.x + d * p.y + e * p.z + g,
-            2.0 * b * p.y + d * p.x + f * p.z + h,
-            2.0 * c * p.z + e * p.x + f * p.y + i,
-        )
-    }
-
-    fn in_box(&self, p: Vec3) -> bool {
-        p.cmpge(self.lo).all() && p.cmple(self.hi).all()
+    fn in_box(&self, p: [f64; 3]) -> bool {
+        (0..3).all(|i| p[i] >= self.box_lo[i] && p[i] <= self.box_hi[i])
     }
 
     /// Nearest t with 0 < t <= t_max (inclusive: the caller breaks ties) under the
-    /// box-clipping root rule.
+    /// box-clipping root rule; the comparisons with 0 and t_max are made on the f32 t
+    /// returned.
     #[inline]
     pub fn intersect_1(&self, r: &Ray1, t_max: f32) -> Option<f32> {
         // (the all-zero quadric is dropped when the primitives are built)
-        // coefficients of F along the ray
-        let [qa, qb, qc, qd, qe, qf, ..] = self.coef;
-        let d = r.dir;
-        let a = qa * d.x * d.x
-            + qb * d.y * d.y
-            + qc * d.z * d.z
-            + qd * d.x * d.y
-            + qe * d.x * d.z
-            + qf * d.y * d.z;
-        let b = self.gradient(r.origin).dot(d);
-        let c = self.value(r.origin);
+        let o = r.origin.as_dvec3().to_array();
+        let d = r.dir.as_dvec3().to_array();
+        let (a, b, c) = along(&self.coef, o, d);
         // solve for both roots
         let (t0, t1) = if a == 0.0 {
             if b == 0.0 {
@@ -270,9 +345,11 @@ impl Quadric32 {
             }
         };
         // nearer positive root in the box, else the farther one
-        [t0, t1]
-            .into_iter()
-            .find(|&t| t > 0.0 && t <= t_max && self.in_box(r.at(t)))
+        [t0, t1].into_iter().find_map(|t| {
+            let t32 = t as f32;
+            let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+            (t32 > 0.0 && t32 <= t_max && self.in_box(p)).then_some(t32)
+        })
     }
 
     /// Whether the quadric meets the ray with 0 < t < t_max.
@@ -281,65 +358,47 @@ impl Quadric32 {
         self.intersect_1(r, t_max).is_some_and(|t| t < t_max)
     }
 
-    /// Packet twin of [`Quadric32::intersect_1`].
+    /// Packet twin of [`Quadric32::intersect_1`], operation for operation.
     #[inline]
     pub fn intersect_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> (Mask8, f32x8) {
-        let k = self.coef.map(f32x8::splat);
-        let zero = f32x8::ZERO;
-        let two = f32x8::splat(2.0);
-        // coefficients of F along the ray
-        let (d, o) = (r.dir, r.origin);
-        let a = k[0] * d.x * d.x
-            + k[1] * d.y * d.y
-            + k[2] * d.z * d.z
-            + k[3] * d.x * d.y
-            + k[4] * d.x * d.z
-            + k[5] * d.y * d.z;
-        let grad = Vec3x8::new(
-            two * k[0] * o.x + k[3] * o.y + k[4] * o.z + k[6],
-            two * k[1] * o.y + k[3] * o.x + k[5] * o.z + k[7],
-            two * k[2] * o.z + k[4] * o.x + k[5] * o.y + k[8],
-        );
-        let b = grad.dot(d);
-        let c = k[0] * o.x * o.x
-            + k[1] * o.y * o.y
-            + k[2] * o.z * o.z
-            + k[3] * o.x * o.y
-            + k[4] * o.x * o.z
-            + k[5] * o.y * o.z
-            + k[6] * o.x
-            + k[7] * o.y
-            + k[8] * o.z
-            + k[9];
+        let bits = |m: f64x8| Mask8::from_bits(m.to_bitmask());
+        let zero = f64x8::ZERO;
+        let o = [widen(r.origin.x), widen(r.origin.y), widen(r.origin.z)];
+        let d = [widen(r.dir.x), widen(r.dir.y), widen(r.dir.z)];
+        let (a, b, c) = along(&self.coef, o, d);
         // solve for both roots
-        let linear = a.eq8(zero);
-        let disc = b * b - f32x8::splat(4.0) * a * c;
-        let valid = active & ((linear & !b.eq8(zero)) | (!linear & disc.ge(zero)));
+        let linear = a.simd_eq(zero);
+        let disc = b * b - f64x8::splat(4.0) * a * c;
+        let valid = active & bits((linear & !b.simd_eq(zero)) | (!linear & disc.simd_ge(zero)));
         if valid.none() {
-            return (valid, zero);
+            return (valid, f32x8::ZERO);
         }
-        let q = f32x8::splat(-0.5) * (b + (disc.sqrt() | (b & f32x8::splat(-0.0))));
+        let q = f64x8::splat(-0.5) * (b + (disc.sqrt() | (b & f64x8::splat(-0.0))));
         let r0 = q / a;
         let r1 = c / q;
-        let q0 = q.eq8(zero);
+        let q0 = q.simd_eq(zero);
         let t0 = q0.select(zero, r0.min(r1));
         let t1 = q0.select(zero, r0.max(r1));
-        let tl = -c / b;
-        let t0 = linear.select(tl, t0);
-        let t1 = linear.select(tl, t1);
-        // nearer positive root in the box, else the farther one
-        let in_box = |t: f32x8| {
-            let p = Vec3x8::new(o.x + d.x * t, o.y + d.y * t, o.z + d.z * t);
-            p.x.ge(f32x8::splat(self.lo.x))
-                & p.y.ge(f32x8::splat(self.lo.y))
-                & p.z.ge(f32x8::splat(self.lo.z))
-                & p.x.le(f32x8::splat(self.hi.x))
-                & p.y.le(f32x8::splat(self.hi.y))
-                & p.z.le(f32x8::splat(self.hi.z))
+        let (t0, t1) = if linear.any() {
+            let tl = -c / b;
+            (linear.select(tl, t0), linear.select(tl, t1))
+        } else {
+            (t0, t1)
         };
-        let ok0 = valid & t0.gt(zero) & t0.le(t_max) & in_box(t0);
-        let ok1 = valid & t1.gt(zero) & t1.le(t_max) & in_box(t1);
-        (ok0 | ok1, ok0.select(t0, t1))
+        // nearer positive root in the box, else the farther one
+        let in_box = |t: f64x8| {
+            let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+            let (lo, hi) = (self.box_lo.to_array(), self.box_hi.to_array());
+            let inside =
+                |i: usize| p[i].simd_ge(f64x8::splat(lo[i])) & p[i].simd_le(f64x8::splat(hi[i]));
+            let m = inside(0) & inside(1) & inside(2);
+            bits(m)
+        };
+        let zero32 = f32x8::ZERO;
+        let (t0_32, t1_32) = (narrow(t0), narrow(t1));
+        let ok0 = valid & t0_32.gt(zero32) & t0_32.le(t_max) & in_box(t0);
+        let ok1 = valid & t1_32.gt(zero32) & t1_32.le(t_max) & in_box(t1);
+        (ok0 | ok1, ok0.select(t0_32, t1_32))
     }
 
     /// Lanes of `active` whose ray meets the quadric with 0 < t < t_max.
@@ -350,52 +409,76 @@ impl Quadric32 {
         m & t.lt(t_max)
     }
 
-    /// Surface at distance t; the error bound as in the reference, in f32.
+    /// Surface at distance t: point, normal and error bound as in the reference,
+    /// evaluated in f64 at o + t·d, then rounded to f32.
     pub fn surface_1(&self, r: &Ray1, t: f32) -> Surface32 {
-        let point = r.at(t);
-        let grad = self.gradient(point);
-        let glen = grad.length();
+        let (o, d, t) = (r.origin.as_dvec3(), r.dir.as_dvec3(), f64::from(t));
+        let p = [o.x + d.x * t, o.y + d.y * t, o.z + d.z * t];
+        let g = gradient(&self.coef, p);
+        let glen = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
         let ok = glen > 0.0 && glen.is_finite();
-        let normal = if ok { grad / glen } else { -r.dir };
-        let magnitude = terms(self.coef, point.x, point.y, point.z, f32::abs);
-        let dist = if ok {
-            2.0 * (self.value(point).abs() + gamma32(12) * magnitude) / glen
+        let normal = if ok {
+            Vec3::new(
+                (g[0] / glen) as f32,
+                (g[1] / glen) as f32,
+                (g[2] / glen) as f32,
+            )
         } else {
-            gamma32(16) * point.abs().max_element()
+            -r.dir
         };
-        // the hit point o + t·d itself is off by about one rounding per component
-        let err = Vec3::splat(dist) + (point.abs() + (r.dir * t).abs()) * gamma32(3);
+        let magnitude = terms(self.coef, p[0], p[1], p[2], f64::abs);
+        let value = terms(self.coef, p[0], p[1], p[2], |t| t);
+        let point = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
+        let dist = if ok {
+            2.0 * (value.abs() + gamma(12) * magnitude) / glen
+        } else {
+            f64::from(gamma32(16)) * p[0].abs().max(p[1].abs().max(p[2].abs()))
+        };
+        // and rounding the point to f32: half an ulp per component
+        let half_ulp = f64::from(gamma32(1));
+        let err = Vec3::new(
+            up32(dist + p[0].abs() * half_ulp),
+            up32(dist + p[1].abs() * half_ulp),
+            up32(dist + p[2].abs() * half_ulp),
+        );
         Surface32 { point, normal, err }
     }
 
     /// [`Quadric32::surface_1`] on eight lanes, operation for operation.
     pub fn surface_x8(&self, r: &RayPacket8, t: f32x8) -> Surface8 {
-        let k = self.coef.map(f32x8::splat);
-        let [a, b, c, d, e, f, g, h, i, _] = k;
-        let dt = r.dir * t;
-        let point = r.origin + dt;
-        let (x, y, z) = (point.x, point.y, point.z);
-        let two = f32x8::splat(2.0);
-        let grad = Vec3x8::new(
-            two * a * x + d * y + e * z + g,
-            two * b * y + d * x + f * z + h,
-            two * c * z + e * x + f * y + i,
-        );
-        let glen = grad.length();
-        let ok = glen.gt(f32x8::ZERO) & glen.lt(f32x8::splat(f32::INFINITY));
+        let t = widen(t);
+        let o = [widen(r.origin.x), widen(r.origin.y), widen(r.origin.z)];
+        let d = [widen(r.dir.x), widen(r.dir.y), widen(r.dir.z)];
+        let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+        let g = gradient(&self.coef, p);
+        let glen = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let ok = glen.simd_gt(f64x8::ZERO) & glen.simd_lt(f64x8::splat(f64::INFINITY));
+        let ok32 = Mask8::from_bits(ok.to_bitmask());
         let normal = Vec3x8::select(
-            ok,
-            Vec3x8::new(grad.x / glen, grad.y / glen, grad.z / glen),
+            ok32,
+            Vec3x8::new(
+                narrow(g[0] / glen),
+                narrow(g[1] / glen),
+                narrow(g[2] / glen),
+            ),
             -r.dir,
         );
-        let magnitude = terms(k, x, y, z, f32x8::abs);
-        let value = terms(k, x, y, z, |t| t);
-        let p = point.abs();
+        let magnitude = terms(self.coef.map(f64x8::splat), p[0], p[1], p[2], f64x8::abs);
+        let value = terms(self.coef.map(f64x8::splat), p[0], p[1], p[2], |t| t);
+        let point = Vec3x8::new(narrow(p[0]), narrow(p[1]), narrow(p[2]));
+        let two = f64x8::splat(2.0);
+        let a = [p[0].abs(), p[1].abs(), p[2].abs()];
         let dist = ok.select(
-            two * (value.abs() + f32x8::splat(gamma32(12)) * magnitude) / glen,
-            f32x8::splat(gamma32(16)) * p.x.max(p.y.max(p.z)),
+            two * (value.abs() + f64x8::splat(gamma(12)) * magnitude) / glen,
+            f64x8::splat(f64::from(gamma32(16))) * a[0].max(a[1].max(a[2])),
         );
-        let err = Vec3x8::new(dist, dist, dist) + (p + dt.abs()) * f32x8::splat(gamma32(3));
+        let half_ulp = f64x8::splat(f64::from(gamma32(1)));
+        let up = |e: f64x8| narrow(e) * f32x8::splat(1.0 + f32::EPSILON);
+        let err = Vec3x8::new(
+            up(dist + a[0] * half_ulp),
+            up(dist + a[1] * half_ulp),
+            up(dist + a[2] * half_ulp),
+        );
         Surface8 { point, normal, err }
     }
 }
