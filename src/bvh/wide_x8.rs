@@ -312,7 +312,7 @@ impl Bvh {
         if w.nodes.is_empty() || act.none() {
             return true;
         }
-        let Some(fr) = Frustum::new(r, act, octant, spread, self.diagonal()) else {
+        let Some(fr) = Frustum::new(r, act, octant, spread, w.diagonal) else {
             return false;
         };
         // the largest nearest hit of the lanes: nothing entered beyond it can be nearer
@@ -359,15 +359,6 @@ impl Bvh {
             }
         }
         true
-    }
-
-    /// Length of the diagonal of the tree's root box (0 when empty).
-    #[inline]
-    fn diagonal(&self) -> f32 {
-        self.nodes.first().map_or(0.0, |n| {
-            let d = n.bounds();
-            (d.hi - d.lo).length()
-        })
     }
 
     /// A leaf of the wide packet walk; whether any lane's hit changed.
@@ -444,7 +435,7 @@ impl Bvh {
         if w.nodes.is_empty() || act.none() {
             return Some(Mask8::NONE);
         }
-        let fr = Frustum::new(r, act, octant, spread, self.diagonal())?;
+        let fr = Frustum::new(r, act, octant, spread, w.diagonal)?;
         let t_hi = hmax(t_max, act).to_array()[0];
         let mut left = act;
         // uninitialised for the same reason as in `intersect_x8_wide`
