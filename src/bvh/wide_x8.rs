@@ -158,13 +158,16 @@ impl Frustum {
     /// origins, finite non-zero 1/d), so `fast_min`/`fast_max` are exact.
     #[inline(always)]
     pub(super) fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+        // min(d·r_lo, d·r_hi) is d·r_lo when d >= +0 and d·r_hi when d <= −0 (r_lo and
+        // r_hi share their sign, rounding is monotone, ±0 products are equal): one
+        // product picked by the sign bit of d, bit for bit the same; max the other way
         let entry = |a: usize| {
             let d = bounds[self.near[a]] - self.o_near[a];
-            (d * self.r_lo[a]).fast_min(d * self.r_hi[a])
+            d * by_sign(d, self.r_hi[a], self.r_lo[a])
         };
         let exit = |a: usize| {
             let d = bounds[self.far[a]] - self.o_far[a];
-            (d * self.r_lo[a]).fast_max(d * self.r_hi[a])
+            d * by_sign(d, self.r_lo[a], self.r_hi[a])
         };
         let near = entry(0)
             .fast_max(entry(1))
@@ -198,6 +201,22 @@ fn prefetch_children_x8(w: &WideBvh, node: &WideNode, mut bits: u32) {
         {
             prefetch_lines(b);
         }
+    }
+}
+
+/// `neg` in the lanes where the sign bit of `d` is set (−0 included), `pos` elsewhere.
+#[inline(always)]
+fn by_sign(d: f32x8, neg: f32x8, pos: f32x8) -> f32x8 {
+    // one `vblendvps`, which reads only the sign bits of its mask
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    {
+        use safe_arch::{blend_varying_m256, m256};
+        let m = |v: f32x8| m256(wide::bytemuck::cast(v));
+        wide::bytemuck::cast(blend_varying_m256(m(pos), m(neg), m(d)).0)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+    {
+        Mask8(d.is_sign_negative()).select(neg, pos)
     }
 }
 
