@@ -348,7 +348,6 @@ impl Bvh {
                 let node = &w.nodes[child as usize];
                 steps.boxes += 1;
                 let (mut bits, near) = fr.test(&node.bounds, t_hi);
-                prefetch_children_x8(w, node, bits);
                 if bits != 0 {
                     let first = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
@@ -356,6 +355,7 @@ impl Bvh {
                         cur = pack(node.child[first], node.meta[first]);
                         continue 'walk;
                     }
+                    prefetch_children_x8(w, node, bits | 1 << first);
                     // two or more: nearest next, the others pushed farthest first
                     cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
                     continue 'walk;
