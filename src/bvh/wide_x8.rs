@@ -406,8 +406,13 @@ impl Bvh {
         let mut changed = false;
         let nb = count.div_ceil(8) as usize;
         for b in &self.wide.blocks[child as usize..child as usize + nb] {
-            // the triangles whose binary leaf some lane may enter
-            let mut bits = fr.test(&b.bounds, t_hi).0;
+            // the triangles whose binary leaf some lane may enter (a block of one binary
+            // leaf: all, that leaf's box is the slot's, which the frustum has passed)
+            let mut bits = if b.one_leaf {
+                (1 << b.count) - 1
+            } else {
+                fr.test(&b.bounds, t_hi).0
+            };
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
