@@ -61,10 +61,9 @@ pub const FRUSTUM_SPREAD: f32 = 0.015;
 pub const WIDE_PACKET_MIN_NODES: usize = 16;
 
 /// Interval bounds of a packet's rays, splatted, for the slab test of eight boxes at once.
+/// The entry and exit planes of each axis follow from the direction signs, a constant
+/// of the walks (`OCT` of [`Frustum::test`]).
 pub(super) struct Frustum {
-    /// Per axis: index in `WideNode::bounds` of the entry and the exit plane.
-    near: [usize; 3],
-    far: [usize; 3],
     /// Per axis: the origin bound subtracted from the entry plane (o_hi when 1/d > 0,
     /// o_lo otherwise) and from the exit plane (the other one).
     o_near: [f32x8; 3],
@@ -142,8 +141,6 @@ impl Frustum {
             return None;
         }
         Some(Frustum {
-            near: [0, 1, 2].map(|a| 2 * a + neg[a]),
-            far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
             o_near: [0, 1, 2].map(|a| if neg[a] == 0 { o_hi[a] } else { o_lo[a] }),
             o_far: [0, 1, 2].map(|a| if neg[a] == 0 { o_lo[a] } else { o_hi[a] }),
             r_lo: [0, 1, 2].map(|a| hmin(inv[a], act)),
@@ -151,22 +148,25 @@ impl Frustum {
         })
     }
 
-    /// The eight boxes of `bounds` (layout of `WideNode::bounds`) that some lane may
-    /// meet with 0 <= t <= t_max (far bound widened by 1 + 2γ(3) as in the per-lane
+    /// The eight boxes of `bounds` (layout of `WideNode::bounds`) that some lane of
+    /// direction signs `OCT` (bit k: 1/d < 0 on axis k, the octant of [`Frustum::new`])
+    /// may meet with 0 <= t <= t_max (far bound widened by 1 + 2γ(3) as in the per-lane
     /// test), as bits, and a lower bound of the lanes' entry distances. Empty slots
     /// (lo = +∞, hi = −∞) give entry +∞ and exit −∞: never met. No NaN arises (finite
     /// origins, finite non-zero 1/d), so `fast_min`/`fast_max` are exact.
     #[inline(always)]
-    pub(super) fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+    pub(super) fn test<const OCT: u32>(&self, bounds: &[f32x8; 6], t_max: f32) -> (u32, f32x8) {
+        // entry plane of axis a: lo when 1/d > 0 (a constant index, no lookup)
+        let near = |a: usize| 2 * a + (OCT >> a & 1) as usize;
         // min(d·r_lo, d·r_hi) is d·r_lo when d >= +0 and d·r_hi when d <= −0 (r_lo and
         // r_hi share their sign, rounding is monotone, ±0 products are equal): one
         // product picked by the sign bit of d, bit for bit the same; max the other way
         let entry = |a: usize| {
-            let d = bounds[self.near[a]] - self.o_near[a];
+            let d = bounds[near(a)] - self.o_near[a];
             d * by_sign(d, self.r_hi[a], self.r_lo[a])
         };
         let exit = |a: usize| {
-            let d = bounds[self.far[a]] - self.o_far[a];
+            let d = bounds[near(a) ^ 1] - self.o_far[a];
             d * by_sign(d, self.r_lo[a], self.r_hi[a])
         };
         let near = entry(0)
@@ -334,6 +334,30 @@ impl Bvh {
         let Some(fr) = Frustum::new(r, act, octant, spread, w.diagonal) else {
             return false;
         };
+        // the walk specialised to the direction signs (fixed entry and exit planes)
+        match octant {
+            0 => self.frustum_walk_x8::<0>(r, act, &fr, hit, steps),
+            1 => self.frustum_walk_x8::<1>(r, act, &fr, hit, steps),
+            2 => self.frustum_walk_x8::<2>(r, act, &fr, hit, steps),
+            3 => self.frustum_walk_x8::<3>(r, act, &fr, hit, steps),
+            4 => self.frustum_walk_x8::<4>(r, act, &fr, hit, steps),
+            5 => self.frustum_walk_x8::<5>(r, act, &fr, hit, steps),
+            6 => self.frustum_walk_x8::<6>(r, act, &fr, hit, steps),
+            _ => self.frustum_walk_x8::<7>(r, act, &fr, hit, steps),
+        }
+        true
+    }
+
+    /// The frustum walk of [`Bvh::intersect_x8_wide`] for lanes of direction signs `OCT`.
+    fn frustum_walk_x8<const OCT: u32>(
+        &self,
+        r: &RayPacket8,
+        act: Mask8,
+        fr: &Frustum,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        let w = &self.wide;
         // the largest nearest hit of the lanes: nothing entered beyond it can be nearer
         let mut t_hi = hmax(hit.t, act).to_array()[0];
         // uninitialised, as in the single-ray walk; entries below `sp` are written
@@ -347,7 +371,7 @@ impl Bvh {
             if meta == INTERIOR {
                 let node = &w.nodes[child as usize];
                 steps.boxes += 1;
-                let (mut bits, near) = fr.test(&node.bounds, t_hi);
+                let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
                 if bits != 0 {
                     let first = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
@@ -360,7 +384,7 @@ impl Bvh {
                     cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
                     continue 'walk;
                 }
-            } else if self.leaf_intersect_x8(child, meta, r, act, &fr, t_hi, hit, steps) {
+            } else if self.leaf_intersect_x8::<OCT>(child, meta, r, act, fr, t_hi, hit, steps) {
                 t_hi = hmax(hit.t, act).to_array()[0];
             }
             // pop the next subtree some lane may still enter before its nearest hit
@@ -377,13 +401,12 @@ impl Bvh {
                 }
             }
         }
-        true
     }
 
     /// A leaf of the wide packet walk; whether any lane's hit changed.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_intersect_x8(
+    fn leaf_intersect_x8<const OCT: u32>(
         &self,
         child: u32,
         meta: u32,
@@ -411,7 +434,7 @@ impl Bvh {
             let mut bits = if b.one_leaf {
                 (1 << b.count) - 1
             } else {
-                fr.test(&b.bounds, t_hi).0
+                fr.test::<OCT>(&b.bounds, t_hi).0
             };
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
@@ -460,6 +483,28 @@ impl Bvh {
             return Some(Mask8::NONE);
         }
         let fr = Frustum::new(r, act, octant, spread, w.diagonal)?;
+        Some(match octant {
+            0 => self.frustum_occlusion_x8::<0>(r, act, &fr, t_max, steps),
+            1 => self.frustum_occlusion_x8::<1>(r, act, &fr, t_max, steps),
+            2 => self.frustum_occlusion_x8::<2>(r, act, &fr, t_max, steps),
+            3 => self.frustum_occlusion_x8::<3>(r, act, &fr, t_max, steps),
+            4 => self.frustum_occlusion_x8::<4>(r, act, &fr, t_max, steps),
+            5 => self.frustum_occlusion_x8::<5>(r, act, &fr, t_max, steps),
+            6 => self.frustum_occlusion_x8::<6>(r, act, &fr, t_max, steps),
+            _ => self.frustum_occlusion_x8::<7>(r, act, &fr, t_max, steps),
+        })
+    }
+
+    /// The frustum walk of [`Bvh::occluded_x8_wide`] for lanes of direction signs `OCT`.
+    fn frustum_occlusion_x8<const OCT: u32>(
+        &self,
+        r: &RayPacket8,
+        act: Mask8,
+        fr: &Frustum,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let w = &self.wide;
         let t_hi = hmax(t_max, act).to_array()[0];
         let mut left = act;
         // uninitialised for the same reason as in `intersect_x8_wide`
@@ -474,7 +519,7 @@ impl Bvh {
             if meta == INTERIOR {
                 let node = &w.nodes[child as usize];
                 steps.boxes += 1;
-                let mut bits = fr.test(&node.bounds, t_hi).0;
+                let mut bits = fr.test::<OCT>(&node.bounds, t_hi).0;
                 prefetch_children_x8(w, node, bits);
                 while bits != 0 {
                     let s = bits.trailing_zeros() as usize;
@@ -499,7 +544,7 @@ impl Bvh {
             } else {
                 let nb = count.div_ceil(8) as usize;
                 for b in &self.wide.blocks[child as usize..child as usize + nb] {
-                    let mut bits = fr.test(&b.bounds, t_hi).0;
+                    let mut bits = fr.test::<OCT>(&b.bounds, t_hi).0;
                     while bits != 0 && left.any() {
                         let j = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
@@ -515,6 +560,6 @@ impl Bvh {
                 break;
             }
         }
-        Some(act.and_not(left))
+        act.and_not(left)
     }
 }
