@@ -189,9 +189,12 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                         } else {
                             bvh.intersect_x8_binary(&p, active, &mut h, &mut steps);
                         }
-                        let t = h.t.to_array();
-                        for (i, out) in ts.iter_mut().enumerate() {
-                            *out = if h.prim_lane(i) >= 0 { t[i] } else { -1.0 };
+                        // t of the lanes that hit, −1 for the others, stored whole
+                        let t = h.hit_mask().select(h.t, f32x8::splat(-1.0)).to_array();
+                        if let Ok(ts) = <&mut [f32; 8]>::try_from(&mut *ts) {
+                            *ts = t;
+                        } else {
+                            ts.copy_from_slice(&t[..n]);
                         }
                     }
                 }
