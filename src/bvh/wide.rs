@@ -93,7 +93,8 @@ pub struct TriBlock {
     pub first: u32,
     pub count: u32,
     /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
-    /// walk then skips the lane boxes (three cache lines) on a hit.
+    /// walk then skips the lane boxes (three cache lines) on a hit, the frustum packet
+    /// walk their frustum test.
     pub one_leaf: bool,
 }
 

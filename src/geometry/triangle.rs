@@ -304,8 +304,7 @@ pub fn intersect_splat_x8(
     let delta_z = g(3) * max_z;
     let delta_x = g(5) * (max_x + max_z);
     let delta_y = g(5) * (max_y + max_z);
-    let delta_e =
-        f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let delta_e = f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
     let max_e = amax(e0, e1, e2);
     let delta_t = f32x8::splat(3.0)
         * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
