@@ -93,7 +93,8 @@ pub struct TriBlock {
     pub first: u32,
     pub count: u32,
     /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
-    /// walk then skips the lane boxes (three cache lines) on a hit.
+    /// walk then skips the lane boxes (three cache lines) on a hit, the frustum packet
+    /// walk their frustum test.
     pub one_leaf: bool,
 }
 
@@ -105,6 +106,11 @@ const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
 pub struct WideBvh {
     pub nodes: Vec<WideNode>,
     pub blocks: Vec<TriBlock>,
+    /// Length of the diagonal of the root box (0 when empty): the packet walk's origin
+    /// spread limit scales with it (`wide_x8::Frustum::new`), so it is computed once
+    /// here, not per packet (a square root per packet was 1.2 % of a perf profile of
+    /// bench-trace torus100k primary mode=8).
+    pub diagonal: f32,
 }
 
 /// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
@@ -160,6 +166,10 @@ impl WideBvh {
         if nodes.is_empty() {
             return w;
         }
+        w.diagonal = {
+            let d = nodes[0].bounds();
+            (d.hi - d.lo).length()
+        };
         // bottom-up: which subtrees are one contiguous run of one kind (children follow
         // their parent in the array, so a reverse sweep sees children first)
         let mut span = vec![

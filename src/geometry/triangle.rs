@@ -211,57 +211,7 @@ impl Triangle32 {
         active: Mask8,
         t_max: f32x8,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
-        let zero = f32x8::ZERO;
-        // translate the vertices to the ray origin
-        // permute so that the largest direction component is z
-        let mut p = self.v.map(|q| r.permute(Vec3x8::splat(q) - r.origin));
-        // shear so the ray runs along +z
-        for q in &mut p {
-            q.x += r.shear.x * q.z;
-            q.y += r.shear.y * q.z;
-        }
-        // edge functions
-        let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
-        let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
-        let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
-        // reject when the edge functions disagree in sign (zero counts as inside)
-        let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
-        let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
-        let det = e0 + e1 + e2;
-        let valid = active.and_not(any_neg & any_pos) & !det.eq8(zero);
-        if valid.none() {
-            return (valid, zero, zero, zero);
-        }
-        // scaled distance, compared without dividing
-        let z = p.map(|q| q.z * r.shear.z);
-        let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
-        let sign = det & f32x8::splat(-0.0);
-        let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
-        let adet = det.abs();
-        let t_lim = t_max * f32x8::splat(1.0 + 4.0 * f32::EPSILON);
-        let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
-        if valid.none() {
-            return (valid, zero, zero, zero);
-        }
-        let inv_det = f32x8::splat(1.0) / det;
-        let t = t_scaled * inv_det;
-        // t must be positive beyond its own rounding error (pbrt-v4's bound)
-        let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
-        let max_z = amax(z[0], z[1], z[2]);
-        let max_x = amax(p[0].x, p[1].x, p[2].x);
-        let max_y = amax(p[0].y, p[1].y, p[2].y);
-        let g = |n| f32x8::splat(gamma32(n));
-        let delta_z = g(3) * max_z;
-        let delta_x = g(5) * (max_x + max_z);
-        let delta_y = g(5) * (max_y + max_z);
-        let delta_e =
-            f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-        let max_e = amax(e0, e1, e2);
-        let delta_t = f32x8::splat(3.0)
-            * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
-            * inv_det.abs();
-        let valid = valid & t.gt(delta_t) & t.le(t_max);
-        (valid, t, e1 * inv_det, e2 * inv_det)
+        intersect_splat_x8(self.v.map(Vec3x8::splat), r, active, t_max)
     }
 
     /// Lanes of `active` whose ray meets the triangle with 0 < t < t_max.
@@ -299,6 +249,68 @@ impl Triangle32 {
             err,
         }
     }
+}
+
+/// [`Triangle32::intersect_x8`] of the triangle whose vertices `v` are given splatted
+/// (the frustum walk reads them straight from a triangle block, one broadcast each,
+/// instead of unpacking a [`Triangle32`] to splat it again).
+#[inline(always)]
+pub fn intersect_splat_x8(
+    v: [Vec3x8; 3],
+    r: &RayPacket8,
+    active: Mask8,
+    t_max: f32x8,
+) -> (Mask8, f32x8, f32x8, f32x8) {
+    let zero = f32x8::ZERO;
+    // translate the vertices to the ray origin
+    // permute so that the largest direction component is z
+    let mut p = v.map(|q| r.permute(q - r.origin));
+    // shear so the ray runs along +z
+    for q in &mut p {
+        q.x += r.shear.x * q.z;
+        q.y += r.shear.y * q.z;
+    }
+    // edge functions
+    let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
+    let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
+    let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
+    // reject when the edge functions disagree in sign (zero counts as inside)
+    let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
+    let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
+    let det = e0 + e1 + e2;
+    let valid = active.and_not(any_neg & any_pos) & !det.eq8(zero);
+    if valid.none() {
+        return (valid, zero, zero, zero);
+    }
+    // scaled distance, compared without dividing
+    let z = p.map(|q| q.z * r.shear.z);
+    let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
+    let sign = det & f32x8::splat(-0.0);
+    let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
+    let adet = det.abs();
+    let t_lim = t_max * f32x8::splat(1.0 + 4.0 * f32::EPSILON);
+    let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
+    if valid.none() {
+        return (valid, zero, zero, zero);
+    }
+    let inv_det = f32x8::splat(1.0) / det;
+    let t = t_scaled * inv_det;
+    // t must be positive beyond its own rounding error (pbrt-v4's bound)
+    let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
+    let max_z = amax(z[0], z[1], z[2]);
+    let max_x = amax(p[0].x, p[1].x, p[2].x);
+    let max_y = amax(p[0].y, p[1].y, p[2].y);
+    let g = |n| f32x8::splat(gamma32(n));
+    let delta_z = g(3) * max_z;
+    let delta_x = g(5) * (max_x + max_z);
+    let delta_y = g(5) * (max_y + max_z);
+    let delta_e = f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let max_e = amax(e0, e1, e2);
+    let delta_t = f32x8::splat(3.0)
+        * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+        * inv_det.abs();
+    let valid = valid & t.gt(delta_t) & t.le(t_max);
+    (valid, t, e1 * inv_det, e2 * inv_det)
 }
 
 // ------------------------------------------- fast path, one ray against 8 triangles
