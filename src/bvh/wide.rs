@@ -89,6 +89,10 @@ const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 #[repr(C, align(64))]
 pub struct TriBlock {
     pub tri: Triangle8,
+    // Tried: `first`, `count`, `one_leaf` before `bounds`, in the fifth line that
+    // `prefetch` brings with the triangles: bench-trace torus100k incoherent mode=1,
+    // 1 thread, six interleaved pairs, median 2.18 vs 2.23 Mrays/s; cachegrind D1
+    // misses 32.34 M both.
     pub bounds: [f32x8; 6],
     pub first: u32,
     pub count: u32,
@@ -456,6 +460,11 @@ impl WideBvh {
     }
 
     /// Prefetches one child: its node, or its first triangle block.
+    // Tried (bench-trace torus100k incoherent mode=1, 1 thread, interleaved, medians):
+    // also the second block of a two-block leaf: 2.37 vs 2.40 Mrays/s (8 pairs);
+    // prefetching after the children are sorted, nearest first, all of them or only
+    // the nearest and the next two on the stack: 2.15 / 2.17 vs 2.31 (7 rounds): the
+    // prefetches need the lead they get here.
     #[inline(always)]
     fn prefetch(&self, child: u32, meta: u32) {
         if meta == INTERIOR {
@@ -535,6 +544,13 @@ impl BoxRay {
     /// 1 + 2γ(3)); the entry distances. With finite origins and 1/d (the slab rule)
     /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
     /// near plane by the sign of 1/d gives the same value as the binary test's min.
+    // Tried: the walks specialised to the direction octant (`const OCT`, constant
+    // planes instead of `near`/`far`, as `wide_x8::Frustum::test`; dispatch once per
+    // ray). valgrind --tool=callgrind, bench-trace torus100k incoherent mode=1 --reps 1,
+    // `timed_trace`: 1336.8 -> 1183.4 M instructions (-11.5 %), yet slower: 1 thread,
+    // ten interleaved pairs, median 2.39 -> 2.20 Mrays/s (base ahead in 9 of 10), eight
+    // copies of the walk and its inlined leaf for rays of random octants. With the
+    // leaf shared (`#[inline(never)]`, planes looked up): 1321.5 M, 2.25 vs 2.24 (8 pairs).
     #[inline]
     fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (Mask8, f32x8) {
         let t = |plane: usize, a: usize| (bounds[plane] - self.origin[a]) * self.inv_dir[a];
@@ -612,6 +628,9 @@ fn finite(r: &Ray1) -> bool {
 /// distance's bits, >= 0 so ordered as integers, then the slot; insertion sort, at most
 /// 8), and returns the nearest, to visit next. Shared by the single-ray and the
 /// frustum packet walks.
+// Tried for the single-ray walk: branch-free, all eight keys (misses zeroed) through a
+// 19-comparator sorting network and all seven entries written: bench-trace torus100k
+// incoherent mode=1, 1 thread, eight interleaved pairs, median 1.98 vs 2.36 Mrays/s.
 #[inline(always)]
 pub(super) fn push_ordered(
     node: &WideNode,
