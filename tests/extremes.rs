@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{compare, reference_ids};
+use common::{compare, pixels_off, reference_ids};
 use glam::DVec3;
 use octaray::output::Framebuffer;
 use octaray::render::RenderSettings;
@@ -423,12 +423,7 @@ fn thin_quadric_far_from_the_ray_origins_casts_no_false_shadows() {
     let reference = render("reference", &s, Camera::default(), 64);
     for p in &PROFILES[1..] {
         let img = render(p, &s, Camera::default(), 64);
-        let off = reference
-            .pixels
-            .iter()
-            .zip(&img.pixels)
-            .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > 2))
-            .count();
+        let off = pixels_off(&reference.pixels, &img.pixels, 2);
         println!("thin cylinder [{p}]: {off} pixels off by more than 2/255");
         assert!(off <= 4, "thin cylinder [{p}]: {off} pixels off");
     }

@@ -10,6 +10,8 @@
 //!    change, and look at the images before committing them.
 //! 3. The default command renders the built-in scene headless and never overwrites.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -287,12 +289,7 @@ fn cli_renders_non_square_frames() {
         "r.png",
     );
     let f = cli_render(&dir, &["--profile", "fast", "--size", "96x48"], "f.png");
-    let off = r
-        .pixels
-        .iter()
-        .zip(&f.pixels)
-        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > 2))
-        .count();
+    let off = common::pixels_off(&r.pixels, &f.pixels, 2);
     assert!(off * 100 <= r.pixels.len(), "{off} pixels off by > 2/255");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -133,6 +133,14 @@ pub fn generated_scene(n: usize, seed: u64) -> Scene {
 #[allow(unused_imports)]
 pub use octaray::render::diff::{ImageDiff, compare};
 
+/// Pixels of two images of one size whose channels differ by more than `tol`/255.
+pub fn pixels_off(a: &[[u8; 3]], b: &[[u8; 3]], tol: u8) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > tol))
+        .count()
+}
+
 /// The primary-hit object of each pixel on the reference path (−1 background, −2 floor).
 pub fn reference_ids(scene: &Scene, camera: &Camera, size: u32) -> Vec<i64> {
     octaray::render::diff::reference_ids(scene, camera, size, size)
