@@ -118,6 +118,9 @@ pub struct Quadric32 {
     /// The clipping box, relative to base, in f64 (the root rule).
     pub box_lo: DVec3,
     pub box_hi: DVec3,
+    /// Whether the box clips some axis (else the root rule's box test always passes
+    /// and is skipped).
+    pub clipped: bool,
     /// The clipping box rounded outwards to f32 (bounds).
     pub lo: Vec3,
     pub hi: Vec3,
@@ -192,9 +195,7 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
 
 /// Arithmetic shared by the single-ray (f64) and packet (f64x8) quadric kernels, so
 /// that both evaluate the same expressions in the same order.
-trait Lanes:
-    Copy + std::ops::Add<Output = Self> + std::ops::Sub<Output = Self> + std::ops::Mul<Output = Self>
-{
+trait Lanes: Copy + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self> {
     fn k(v: f64) -> Self;
 }
 
@@ -253,12 +254,6 @@ fn narrow(v: f64x8) -> f32x8 {
     f32x8::new(v.to_array().map(|x| x as f32))
 }
 
-/// `e` as an f32 no smaller than it (`as f32` may round down by half an ulp).
-#[inline(always)]
-fn up32(e: f64) -> f32 {
-    e as f32 * (1.0 + f32::EPSILON)
-}
-
 impl Quadric32 {
     /// From scene data, translated so that `base` is the origin (in f64, then rounded).
     pub fn new(q: &Quadric, base: DVec3) -> Quadric32 {
@@ -270,17 +265,7 @@ impl Quadric32 {
         if scale > 0.0 {
             k.iter_mut().for_each(|v| *v /= scale);
         }
-        let axis = |i: usize| {
-            if q.size[i] == 0.0 {
-                (f32::NEG_INFINITY, f32::INFINITY)
-            } else {
-                (
-                    f32_down(q.min[i] - base[i]),
-                    f32_up(q.min[i] + q.size[i] - base[i]),
-                )
-            }
-        };
-        let (x, y, z) = (axis(0), axis(1), axis(2));
+        // the box relative to base, and rounded outwards to f32 (±∞ stay ±∞)
         let exact = |i: usize| {
             if q.size[i] == 0.0 {
                 (f64::NEG_INFINITY, f64::INFINITY)
@@ -289,10 +274,14 @@ impl Quadric32 {
             }
         };
         let (ex, ey, ez) = (exact(0), exact(1), exact(2));
+        let (x, y, z) = [ex, ey, ez]
+            .map(|(lo, hi)| (f32_down(lo), f32_up(hi)))
+            .into();
         Quadric32 {
             coef: k,
             box_lo: DVec3::new(ex.0, ey.0, ez.0),
             box_hi: DVec3::new(ex.1, ey.1, ez.1),
+            clipped: q.size.cmpne(DVec3::ZERO).any(),
             lo: Vec3::new(x.0, y.0, z.0),
             hi: Vec3::new(x.1, y.1, z.1),
             ellipsoid: ellipsoid_bounds(&k),
@@ -312,7 +301,7 @@ impl Quadric32 {
     }
 
     fn in_box(&self, p: [f64; 3]) -> bool {
-        (0..3).all(|i| p[i] >= self.box_lo[i] && p[i] <= self.box_hi[i])
+        !self.clipped || (0..3).all(|i| p[i] >= self.box_lo[i] && p[i] <= self.box_hi[i])
     }
 
     /// Nearest t with 0 < t <= t_max (inclusive: the caller breaks ties) under the
@@ -387,6 +376,9 @@ impl Quadric32 {
         };
         // nearer positive root in the box, else the farther one
         let in_box = |t: f64x8| {
+            if !self.clipped {
+                return Mask8::ALL;
+            }
             let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
             let (lo, hi) = (self.box_lo.to_array(), self.box_hi.to_array());
             let inside =
@@ -437,9 +429,9 @@ impl Quadric32 {
         // and rounding the point to f32: half an ulp per component
         let half_ulp = f64::from(gamma32(1));
         let err = Vec3::new(
-            up32(dist + p[0].abs() * half_ulp),
-            up32(dist + p[1].abs() * half_ulp),
-            up32(dist + p[2].abs() * half_ulp),
+            f32_up(dist + p[0].abs() * half_ulp),
+            f32_up(dist + p[1].abs() * half_ulp),
+            f32_up(dist + p[2].abs() * half_ulp),
         );
         Surface32 { point, normal, err }
     }
@@ -473,7 +465,7 @@ impl Quadric32 {
             f64x8::splat(f64::from(gamma32(16))) * a[0].max(a[1].max(a[2])),
         );
         let half_ulp = f64x8::splat(f64::from(gamma32(1)));
-        let up = |e: f64x8| narrow(e) * f32x8::splat(1.0 + f32::EPSILON);
+        let up = |e: f64x8| f32x8::new(e.to_array().map(f32_up));
         let err = Vec3x8::new(
             up(dist + a[0] * half_ulp),
             up(dist + a[1] * half_ulp),

@@ -135,6 +135,7 @@ pub use octaray::render::diff::{ImageDiff, compare};
 
 /// Pixels of two images of one size whose channels differ by more than `tol`/255.
 pub fn pixels_off(a: &[[u8; 3]], b: &[[u8; 3]], tol: u8) -> usize {
+    assert_eq!(a.len(), b.len(), "images of different sizes");
     a.iter()
         .zip(b)
         .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > tol))
