@@ -86,7 +86,7 @@ pub fn surface_ref(q: &Quadric, ray: &Ray, t: f64) -> SurfacePoint {
     } else {
         -ray.dir // singular point (a cone's apex): no normal; face the ray
     };
-    let magnitude = terms(q.coef, point.x, point.y, point.z, f64::abs);
+    let magnitude = terms(&q.coef, point.x, point.y, point.z, f64::abs);
     let dist = if glen > 0.0 && glen.is_finite() {
         2.0 * (q.value(point).abs() + gamma(12) * magnitude) / glen
     } else {
@@ -133,21 +133,18 @@ pub struct Quadric32 {
 /// each passed through `f` and summed in this order, in any precision: F itself (`f`
 /// the identity) or Σ|term| (`f` = abs), the scale of F's rounding error.
 #[inline(always)]
-fn terms<T>(k: [T; 10], x: T, y: T, z: T, f: impl Fn(T) -> T) -> T
-where
-    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
-{
-    let [a, b, c, d, e, g, h, i, l, j] = k;
-    f(a * x * x)
-        + f(b * y * y)
-        + f(c * z * z)
-        + f(d * x * y)
-        + f(e * x * z)
-        + f(g * y * z)
-        + f(h * x)
-        + f(i * y)
-        + f(l * z)
-        + f(j)
+fn terms<T: Lanes>(k: &[f64; 10], x: T, y: T, z: T, f: impl Fn(T) -> T) -> T {
+    let c = |i: usize| T::k(k[i]);
+    f(c(0) * x * x)
+        + f(c(1) * y * y)
+        + f(c(2) * z * z)
+        + f(c(3) * x * y)
+        + f(c(4) * x * z)
+        + f(c(5) * y * z)
+        + f(c(6) * x)
+        + f(c(7) * y)
+        + f(c(8) * z)
+        + f(c(9))
 }
 
 /// Bounds of {F = 0} when the quadratic part M is definite (an ellipsoid): centre
@@ -239,19 +236,39 @@ fn along<T: Lanes>(k: &[f64; 10], o: [T; 3], d: [T; 3]) -> (T, T, T) {
         + c(5) * dy * dz;
     let g = gradient(k, o);
     let b = g[0] * dx + g[1] * dy + g[2] * dz;
-    (a, b, terms(k.map(T::k), o[0], o[1], o[2], |t| t))
+    (a, b, terms(k, o[0], o[1], o[2], |t| t))
 }
 
 /// The eight lanes of `v` in f64 (exact).
 #[inline(always)]
 fn widen(v: f32x8) -> f64x8 {
-    f64x8::new(v.to_array().map(f64::from))
+    let a = v.to_array();
+    f64x8::new([
+        a[0] as f64,
+        a[1] as f64,
+        a[2] as f64,
+        a[3] as f64,
+        a[4] as f64,
+        a[5] as f64,
+        a[6] as f64,
+        a[7] as f64,
+    ])
 }
 
 /// The eight lanes of `v` rounded to f32 (to nearest, as `as f32`).
 #[inline(always)]
 fn narrow(v: f64x8) -> f32x8 {
-    f32x8::new(v.to_array().map(|x| x as f32))
+    let a = v.to_array();
+    f32x8::new([
+        a[0] as f32,
+        a[1] as f32,
+        a[2] as f32,
+        a[3] as f32,
+        a[4] as f32,
+        a[5] as f32,
+        a[6] as f32,
+        a[7] as f32,
+    ])
 }
 
 impl Quadric32 {
@@ -418,8 +435,8 @@ impl Quadric32 {
         } else {
             -r.dir
         };
-        let magnitude = terms(self.coef, p[0], p[1], p[2], f64::abs);
-        let value = terms(self.coef, p[0], p[1], p[2], |t| t);
+        let magnitude = terms(&self.coef, p[0], p[1], p[2], f64::abs);
+        let value = terms(&self.coef, p[0], p[1], p[2], |t| t);
         let point = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
         let dist = if ok {
             2.0 * (value.abs() + gamma(12) * magnitude) / glen
@@ -455,8 +472,8 @@ impl Quadric32 {
             ),
             -r.dir,
         );
-        let magnitude = terms(self.coef.map(f64x8::splat), p[0], p[1], p[2], f64x8::abs);
-        let value = terms(self.coef.map(f64x8::splat), p[0], p[1], p[2], |t| t);
+        let magnitude = terms(&self.coef, p[0], p[1], p[2], f64x8::abs);
+        let value = terms(&self.coef, p[0], p[1], p[2], |t| t);
         let point = Vec3x8::new(narrow(p[0]), narrow(p[1]), narrow(p[2]));
         let two = f64x8::splat(2.0);
         let a = [p[0].abs(), p[1].abs(), p[2].abs()];
@@ -465,7 +482,14 @@ impl Quadric32 {
             f64x8::splat(f64::from(gamma32(16))) * a[0].max(a[1].max(a[2])),
         );
         let half_ulp = f64x8::splat(f64::from(gamma32(1)));
-        let up = |e: f64x8| f32x8::new(e.to_array().map(f32_up));
+        // f32_up lane by lane, in SIMD: the bounds are >= 0 (or NaN), and the next f32
+        // up from a non-negative one is the next bit pattern
+        let up = |e: f64x8| {
+            let f = narrow(e);
+            let low = Mask8::from_bits(widen(f).simd_lt(e).to_bitmask());
+            let i: wide::i32x8 = wide::bytemuck::cast(f);
+            low.select(wide::bytemuck::cast(i + wide::i32x8::splat(1)), f)
+        };
         let err = Vec3x8::new(
             up(dist + a[0] * half_ulp),
             up(dist + a[1] * half_ulp),
