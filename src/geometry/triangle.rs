@@ -389,10 +389,28 @@ impl Triangle8 {
         active: Mask8,
         t_max: f32,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
+        match r.axes[2] {
+            0 => self.intersect_1x8_kz::<0>(r, active, t_max),
+            1 => self.intersect_1x8_kz::<1>(r, active, t_max),
+            _ => self.intersect_1x8_kz::<2>(r, active, t_max),
+        }
+    }
+
+    /// [`Triangle8::intersect_1x8`] for a ray whose largest direction component is
+    /// axis `KZ` (`r.axes[2] == KZ`): the permutation is then fixed at compile time,
+    /// where a run-time index sends the nine vertex vectors through the stack.
+    #[inline(always)]
+    pub fn intersect_1x8_kz<const KZ: usize>(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        debug_assert_eq!(r.axes[2], KZ);
         let zero = f32x8::ZERO;
         // translate the vertices to the ray origin
         // permute so that the largest direction component is z
-        let [kx, ky, kz] = r.axes;
+        let [kx, ky, kz] = [(KZ + 1) % 3, (KZ + 2) % 3, KZ];
         let p = self.v.map(|q| {
             [
                 q[kx] - r.origin[0],
@@ -451,6 +469,18 @@ impl Triangle8 {
     #[inline(always)]
     pub fn occluded_1x8(&self, r: &TriRay8, active: Mask8, t_max: f32) -> Mask8 {
         let (m, t, _, _) = self.intersect_1x8(r, active, t_max);
+        m & t.lt(f32x8::splat(t_max))
+    }
+
+    /// [`Triangle8::occluded_1x8`] with the permutation fixed (`r.axes[2] == KZ`).
+    #[inline(always)]
+    pub fn occluded_1x8_kz<const KZ: usize>(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> Mask8 {
+        let (m, t, _, _) = self.intersect_1x8_kz::<KZ>(r, active, t_max);
         m & t.lt(f32x8::splat(t_max))
     }
 }
