@@ -709,7 +709,8 @@ impl Bvh {
     /// ray instead of per block).
     // Measured against the run-time permutation (bench-trace torus100k, 1 thread,
     // interleaved pairs, medians): primary mode=1 5.51 -> 5.94 Mrays/s (+6 %, 6 pairs),
-    // incoherent mode=1 2.15 -> 2.30 (16 pairs, within the noise); cachegrind, the whole
+    // incoherent mode=1 2.21 -> 2.38 and 2.15 -> 2.30 (two runs of 8 pairs; per-pair
+    // ratios 0.84-1.22, so within the noise); cachegrind, the whole
     // incoherent run: 2.62 G -> 2.57 G instructions.
     #[inline(always)]
     fn walk_1<const KZ: usize>(&self, wr: &WideRay, hit: &mut Hit1, steps: &mut Steps) {
