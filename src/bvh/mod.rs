@@ -13,6 +13,18 @@
 //! object index (file order), the floor last; shadow (any-hit) queries stop at the
 //! first blocker.
 
+/// `$recv.$method::<K>(args)` for the constant `K` among `$n...` equal to `$k`: picks
+/// the const instance of a walk (a direction octant, a permutation axis) once per
+/// query. Every value of `$k` must be listed.
+macro_rules! with_const {
+    ($k:expr, [$($n:literal),+], $recv:ident.$method:ident $args:tt) => {
+        match $k {
+            $($n => $recv.$method::<$n> $args,)+
+            _ => unreachable!("no const instance for this value"),
+        }
+    };
+}
+
 pub mod bench;
 pub mod build;
 pub mod node;

@@ -168,21 +168,7 @@ impl Bvh {
         if !self.nodes.is_empty() {
             // the octant shared by every active lane, if any (1/d carries the sign of
             // the direction, −0 included)
-            let act = active.bits();
-            let sign = |inv: f32x8| {
-                let s = inv.to_bitmask() & act;
-                if s == 0 {
-                    Some(false)
-                } else if s == act {
-                    Some(true)
-                } else {
-                    None
-                }
-            };
-            let oct = match (sign(r.inv_dir.x), sign(r.inv_dir.y), sign(r.inv_dir.z)) {
-                (Some(x), Some(y), Some(z)) => Some(x as u32 | (y as u32) << 1 | (z as u32) << 2),
-                _ => None,
-            };
+            let oct = shared_octant(r, active);
             let s = match oct {
                 Some(0) => self.walk_x8::<Octant<false, false, false>>(r, active, hit, 0),
                 Some(1) => self.walk_x8::<Octant<true, false, false>>(r, active, hit, 1),

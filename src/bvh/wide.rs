@@ -695,11 +695,7 @@ impl Bvh {
     pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         if !self.wide.nodes.is_empty() && finite(r) {
             let wr = WideRay::new(r);
-            match wr.tris.axes[2] {
-                0 => self.walk_1::<0>(&wr, hit, steps),
-                1 => self.walk_1::<1>(&wr, hit, steps),
-                _ => self.walk_1::<2>(&wr, hit, steps),
-            }
+            with_const!(wr.tris.axes[2], [0, 1, 2], self.walk_1(&wr, hit, steps))
         }
         self.intersect_beside_1(r, hit, steps);
     }
@@ -837,11 +833,11 @@ impl Bvh {
             return false;
         }
         let wr = WideRay::new(r);
-        match wr.tris.axes[2] {
-            0 => self.occluded_walk_1::<0>(&wr, t_max, steps),
-            1 => self.occluded_walk_1::<1>(&wr, t_max, steps),
-            _ => self.occluded_walk_1::<2>(&wr, t_max, steps),
-        }
+        with_const!(
+            wr.tris.axes[2],
+            [0, 1, 2],
+            self.occluded_walk_1(&wr, t_max, steps)
+        )
     }
 
     /// The tree part of [`Bvh::occluded_1`], the permutation fixed as in `walk_1`.

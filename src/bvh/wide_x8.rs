@@ -376,16 +376,11 @@ impl Bvh {
             return false;
         };
         // the walk specialised to the direction signs (fixed entry and exit planes)
-        match octant {
-            0 => self.frustum_walk_x8::<0>(r, act, &fr, hit, steps),
-            1 => self.frustum_walk_x8::<1>(r, act, &fr, hit, steps),
-            2 => self.frustum_walk_x8::<2>(r, act, &fr, hit, steps),
-            3 => self.frustum_walk_x8::<3>(r, act, &fr, hit, steps),
-            4 => self.frustum_walk_x8::<4>(r, act, &fr, hit, steps),
-            5 => self.frustum_walk_x8::<5>(r, act, &fr, hit, steps),
-            6 => self.frustum_walk_x8::<6>(r, act, &fr, hit, steps),
-            _ => self.frustum_walk_x8::<7>(r, act, &fr, hit, steps),
-        }
+        with_const!(
+            octant,
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            self.frustum_walk_x8(r, act, &fr, hit, steps)
+        );
         true
     }
 
@@ -523,16 +518,11 @@ impl Bvh {
             return Some(Mask8::NONE);
         }
         let fr = Frustum::new(r, act, octant, spread, w.diagonal)?;
-        Some(match octant {
-            0 => self.frustum_occlusion_x8::<0>(r, act, &fr, t_max, steps),
-            1 => self.frustum_occlusion_x8::<1>(r, act, &fr, t_max, steps),
-            2 => self.frustum_occlusion_x8::<2>(r, act, &fr, t_max, steps),
-            3 => self.frustum_occlusion_x8::<3>(r, act, &fr, t_max, steps),
-            4 => self.frustum_occlusion_x8::<4>(r, act, &fr, t_max, steps),
-            5 => self.frustum_occlusion_x8::<5>(r, act, &fr, t_max, steps),
-            6 => self.frustum_occlusion_x8::<6>(r, act, &fr, t_max, steps),
-            _ => self.frustum_occlusion_x8::<7>(r, act, &fr, t_max, steps),
-        })
+        Some(with_const!(
+            octant,
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            self.frustum_occlusion_x8(r, act, &fr, t_max, steps)
+        ))
     }
 
     /// The frustum walk of [`Bvh::occluded_x8_wide`] for lanes of direction signs `OCT`.
