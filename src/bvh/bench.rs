@@ -320,13 +320,15 @@ pub fn run(
             .fold(f64::INFINITY, f64::min);
         let w = &bvh.wide;
         let lanes: u64 = w.blocks.iter().map(|b| b.count as u64).sum();
+        let one_leaf = w.blocks.iter().filter(|b| b.one_leaf).count();
         let _ = writeln!(
             log,
-            "octaray wide bvh: collapse_ms={collapse_ms:.1}, {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used)",
+            "octaray wide bvh: collapse_ms={collapse_ms:.1}, {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
             w.nodes.len(),
             w.depth(),
             w.blocks.len(),
-            lanes as f64 / w.blocks.len().max(1) as f64
+            lanes as f64 / w.blocks.len().max(1) as f64,
+            100.0 * one_leaf as f64 / w.blocks.len().max(1) as f64
         );
         let mut runs = Vec::new();
         // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional): one line only,
