@@ -12,7 +12,8 @@
 //! finds something.
 //!
 //! The packet walks (`Bvh::intersect_x8`/`occluded_x8`: the 8-wide tree for packets whose
-//! lanes share their direction signs, `wide_x8.rs`, the binary tree otherwise) are
+//! lanes share their direction signs, `wide_x8.rs`; lane by lane through the wide tree
+//! for packets of mixed signs in trees big enough for it, the binary tree otherwise) are
 //! held to the same rules per lane against the binary single-ray walk, with inactive
 //! lanes (holding NaN) and active NaN lanes that must never hit.
 
@@ -675,8 +676,8 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
     let bvh = torus_bvh();
     let mut rng = Rng(22);
     let rays = rays_of(&incoherent_rays(16_000, 5));
-    // as they come (mixed signs: the binary packet walk) and grouped by signs (the
-    // wide walk with wide frustums)
+    // as they come (mixed signs: lane by lane through the wide tree) and grouped by
+    // signs (the wide walk with wide frustums)
     for by_octant in [false, true] {
         let packets = packets_of(&rays, by_octant);
         let (t, _, _) = compare_packets("packets incoherent", &bvh, &packets, &mut rng, true);
@@ -685,6 +686,28 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
             assert!(t.one_octant * 10 >= t.packets * 9, "{t:?}");
         }
     }
+    // a packet of mixed signs takes exactly the single-ray walks of its lanes (same
+    // node and primitive tests), closest and any hit
+    let packets = packets_of(&rays, false);
+    let mixed = packets
+        .iter()
+        .find(|p| p.len() == 8 && p.iter().any(|r| octant(r) != octant(&p[0])))
+        .expect("a packet of mixed signs");
+    let o: [Vec3; 8] = std::array::from_fn(|l| mixed[l].origin);
+    let d: [Vec3; 8] = std::array::from_fn(|l| mixed[l].dir);
+    let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
+    let (mut sx, mut s1) = (Steps::default(), Steps::default());
+    let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
+    bvh.intersect_x8(&p, Mask8::ALL, &mut hp, &mut sx);
+    let tm = f32x8::splat(1.0);
+    let occ = bvh.occluded_x8(&p, Mask8::ALL, tm, &mut sx);
+    for l in 0..8 {
+        let mut h = Hit1::new(f32::INFINITY);
+        bvh.intersect_1(&p.ray(l), &mut h, &mut s1);
+        assert_eq!((h.t, h.prim), (hp.t.to_array()[l], hp.prim_lane(l)));
+        assert_eq!(bvh.occluded_1(&p.ray(l), 1.0, &mut s1), occ.lane(l));
+    }
+    assert_eq!(sx, s1, "a mixed packet walks as its eight lanes do");
 }
 
 #[test]

@@ -10,12 +10,12 @@
 //! run a copy of the loop specialised to their octant, with the slab test's entry and
 //! exit planes known in advance (`BvhNode::intersect_x8_oct`).
 
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 use super::node::BvhNode;
 use super::wide_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
 use super::{Bvh, STACK_SIZE, Steps};
-use crate::geometry::PrimKind;
+use crate::geometry::{Hit1, PrimKind};
 use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, RayPacket8};
 
 /// A packet slab test: lanes of `active` meeting the box below `t_max`, entry distances.
@@ -100,11 +100,25 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
     m4[0].min(m4[2]).min(m4[1].min(m4[3]))
 }
 
+/// Trees of at least this many wide nodes trace the lanes of an incoherent packet
+/// (mixed direction signs, or spread too wide for the frustum walk) one by one
+/// through the wide single-ray walk instead of walking the binary tree as a packet.
+// Measured (1 thread, interleaved runs, medians): bench-trace torus100k incoherent
+// mode=8 1.14 -> 2.35 Mrays/s (6 pairs; the binary packet walk of 8 unrelated rays
+// fetches the nodes of all eight). Renders of a torus100k mesh with mirror spheres and
+// of 40, 300 and 3000 mirror spheres (RL 4, 512²): the same images, times within the
+// noise (few packets mix signs there). Lanes sharing their signs but spread too wide
+// for the frustum (shadow rays from a floor towards a point light) keep the binary
+// packet walk: sent lane by lane too, the torus mesh scene rendered ~8 % slower.
+pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
+
 impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
-    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide_x8.rs`), the others the binary
-    /// tree ([`Bvh::intersect_x8_binary`]).
+    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide_x8.rs`); in trees of at least
+    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs go lane by lane through
+    /// the 8-wide single-ray walk; the others walk the binary tree
+    /// ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8(
         &self,
         r: &RayPacket8,
@@ -143,14 +157,52 @@ impl Bvh {
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
-            if let Some(oct) = shared_octant(r, act)
-                && self.intersect_x8_wide(r, act, oct, spread, hit, steps)
-            {
+            let done = match shared_octant(r, act) {
+                Some(oct) => self.intersect_x8_wide(r, act, oct, spread, hit, steps),
+                None if self.wide.nodes.len() >= LANES_MIN_NODES => {
+                    self.intersect_x8_lanes(r, act, hit, steps);
+                    true
+                }
+                None => false,
+            };
+            if done {
                 self.intersect_beside_x8(r, active, hit, steps);
                 return;
             }
         }
         self.intersect_x8_binary(r, active, hit, steps);
+    }
+
+    /// The tree part of [`Bvh::intersect_x8`] for an incoherent packet: each lane of
+    /// `active` through the wide single-ray walk.
+    fn intersect_x8_lanes(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        let (mut t, mut prim) = (hit.t.to_array(), hit.prim.to_array());
+        let (mut u, mut v) = (hit.u.to_array(), hit.v.to_array());
+        let mut bits = active.bits();
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let mut h = Hit1 {
+                t: t[l],
+                prim: prim[l],
+                u: u[l],
+                v: v[l],
+            };
+            self.intersect_wide_1(&r.ray(l), &mut h, steps);
+            (t[l], prim[l], u[l], v[l]) = (h.t, h.prim, h.u, h.v);
+        }
+        *hit = HitPacket8 {
+            t: f32x8::new(t),
+            prim: i32x8::new(prim),
+            u: f32x8::new(u),
+            v: f32x8::new(v),
+        };
     }
 
     /// [`Bvh::intersect_x8`] through the binary tree only (every packet; the walk of
@@ -320,12 +372,12 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        let wide_octant = if spread < 0.0 || self.wide.nodes.is_empty() {
-            None
-        } else {
-            shared_octant(r, active & finite_lanes(r)).map(|oct| (oct, spread))
-        };
-        self.occluded_x8_with(r, active, t_max, wide_octant, steps)
+        if spread < 0.0 || self.wide.nodes.is_empty() {
+            return self.occluded_x8_with(r, active, t_max, None, false, steps);
+        }
+        let wide_octant = shared_octant(r, active & finite_lanes(r)).map(|oct| (oct, spread));
+        let lanes = wide_octant.is_none() && self.wide.nodes.len() >= LANES_MIN_NODES;
+        self.occluded_x8_with(r, active, t_max, wide_octant, lanes, steps)
     }
 
     /// [`Bvh::occluded_x8`] through the binary tree only.
@@ -336,12 +388,13 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_with(r, active, t_max, None, steps)
+        self.occluded_x8_with(r, active, t_max, None, false, steps)
     }
 
     /// The any-hit query: the list beside the tree, then the wide tree when
     /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
-    /// packet is coherent enough, else the binary one.
+    /// packet is coherent enough, else lane by lane through the wide tree if `lanes`,
+    /// else the binary tree.
     #[inline(always)]
     fn occluded_x8_with(
         &self,
@@ -349,6 +402,7 @@ impl Bvh {
         active: Mask8,
         t_max: f32x8,
         wide_octant: Option<(u32, f32)>,
+        lanes: bool,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = active;
@@ -377,6 +431,16 @@ impl Bvh {
             });
         if let Some(blocked) = wide {
             left = left.and_not(blocked);
+        } else if lanes && left.any() {
+            let tm = t_max.to_array();
+            let mut bits = (left & finite_lanes(r)).bits();
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if self.occluded_wide_1(&r.ray(l), tm[l], steps) {
+                    left = left.and_not(Mask8::from_bits(1 << l));
+                }
+            }
         } else if !self.nodes.is_empty() && left.any() {
             let mut stack = [0u32; STACK_SIZE];
             let mut sp = 1;

@@ -695,11 +695,18 @@ impl Bvh {
     /// Nearest hit below `hit.t`, recorded in `hit` (the 8-wide tree, then the
     /// unbounded quadrics and the floor).
     pub fn intersect_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        self.intersect_wide_1(r, hit, steps);
+        self.intersect_beside_1(r, hit, steps);
+    }
+
+    /// The tree part of [`Bvh::intersect_1`] (also the walk of each lane of an
+    /// incoherent packet, `traverse_x8.rs`).
+    #[inline]
+    pub(super) fn intersect_wide_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         if !self.wide.nodes.is_empty() && finite(r) {
             let wr = WideRay::new(r);
             with_const!(wr.tris.axes[2], [0, 1, 2], self.walk_1(&wr, hit, steps))
         }
-        self.intersect_beside_1(r, hit, steps);
     }
 
     /// The tree part of [`Bvh::intersect_1`] for a ray whose largest direction
@@ -827,11 +834,14 @@ impl Bvh {
     /// Whether anything lies on the ray with 0 < t < t_max (the floor, the unbounded
     /// quadrics, then the 8-wide tree, unordered; stops at the first blocker).
     pub fn occluded_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
-        if self.occluded_beside_1(r, t_max, steps) {
-            return true;
-        }
-        let w = &self.wide;
-        if w.nodes.is_empty() || !finite(r) {
+        self.occluded_beside_1(r, t_max, steps) || self.occluded_wide_1(r, t_max, steps)
+    }
+
+    /// The tree part of [`Bvh::occluded_1`] (also the walk of each lane of an
+    /// incoherent shadow packet, `traverse_x8.rs`).
+    #[inline]
+    pub(super) fn occluded_wide_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        if self.wide.nodes.is_empty() || !finite(r) {
             return false;
         }
         let wr = WideRay::new(r);
