@@ -22,6 +22,7 @@ mod common;
 use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
+use octaray::bvh::traverse_x8::LANES_MIN_NODES;
 use octaray::bvh::wide_x8::FRUSTUM_SPREAD;
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
@@ -589,7 +590,8 @@ fn compare_packets_at(
             let hb = closest(bvh, &r, t0.to_array()[l], false, &mut sb);
             let ctx = format!("{name}: packet {pi} lane {l} {r:?}: packet {hx:?} vs binary {hb:?}");
             assert_eq!(hx.is_hit(), hb.is_hit(), "{ctx}");
-            // the binary packet walk too (it serves packets of mixed signs)
+            // the binary packet walk too (it serves packets in small trees and packets
+            // too spread for the frustum)
             assert_eq!(
                 hpb.prim_lane(l) >= 0,
                 hb.is_hit(),
@@ -704,7 +706,13 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
     for l in 0..8 {
         let mut h = Hit1::new(f32::INFINITY);
         bvh.intersect_1(&p.ray(l), &mut h, &mut s1);
-        assert_eq!((h.t, h.prim), (hp.t.to_array()[l], hp.prim_lane(l)));
+        let hl = (
+            hp.t.to_array()[l],
+            hp.prim_lane(l),
+            hp.u.to_array()[l],
+            hp.v.to_array()[l],
+        );
+        assert_eq!((h.t, h.prim, h.u, h.v), hl);
         assert_eq!(bvh.occluded_1(&p.ray(l), 1.0, &mut s1), occ.lane(l));
     }
     assert_eq!(sx, s1, "a mixed packet walks as its eight lanes do");
@@ -773,13 +781,24 @@ fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds()
         rays.push(Ray1::new(o, (b.centroid() - o).normalize()));
     }
     rays.extend(edge_rays(&bvh.prims.triangles, 4_000, lo, hi, &mut rng));
-    let (t, sx, _) = compare_packets(
-        "packets mixed",
-        &bvh,
-        &packets_of(&rays, true),
-        &mut rng,
-        true,
+    // grouped by signs (frustum walks) and as they come (mixed signs: lane by lane,
+    // with the floor and the free quadrics beside the tree tested once per lane)
+    assert!(
+        bvh.wide.nodes.len() >= LANES_MIN_NODES,
+        "a tree the lane walk serves"
     );
-    assert!(t.hits > t.lanes / 3, "{t:?}");
-    assert!(sx.quadrics > 0, "{sx:?}");
+    for by_octant in [true, false] {
+        let (t, sx, _) = compare_packets(
+            "packets mixed",
+            &bvh,
+            &packets_of(&rays, by_octant),
+            &mut rng,
+            true,
+        );
+        assert!(t.hits > t.lanes / 3, "{t:?}");
+        assert!(sx.quadrics > 0, "{sx:?}");
+        if !by_octant {
+            assert!(t.one_octant * 2 < t.packets, "{t:?}");
+        }
+    }
 }

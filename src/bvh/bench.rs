@@ -2,8 +2,9 @@
 //! and the criterion benches: a triangle mesh from an OBJ file, 1024² coherent primary
 //! rays in 4 × 2 pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞),
 //! build best of 3 and trace best of 5, reported in the Embree harness's fields for
-//! the packet path (mode=8: the 8-wide tree collapsed from the same BVH, for packets
-//! whose lanes share their direction signs), the binary packet path (mode=8b), the
+//! the packet path (mode=8: the 8-wide tree collapsed from the same BVH, as a frustum
+//! for packets whose lanes share their direction signs, lane by lane for the others),
+//! the binary packet path (mode=8b), the
 //! single-ray path (mode=1, the 8-wide tree) and the binary single-ray path (mode=1b).
 
 use std::path::Path;
@@ -111,8 +112,8 @@ pub enum Mode {
     Single,
     /// `Bvh::intersect_1_binary`, one ray at a time through the binary tree (`mode=1b`).
     SingleBinary,
-    /// `Bvh::intersect_x8`, 8 consecutive rays as one packet (the 8-wide tree when the
-    /// lanes share their direction signs).
+    /// `Bvh::intersect_x8`, 8 consecutive rays as one packet (the 8-wide tree: as a
+    /// frustum when the lanes share their direction signs, lane by lane otherwise).
     Packet8,
     /// `Bvh::intersect_x8_binary`, packets through the binary tree only (`mode=8b`).
     Packet8Binary,
@@ -373,7 +374,7 @@ pub fn run(
                     run.boxes_per_ray,
                     match mode {
                         Mode::Single => "wide node tests (8 boxes each)",
-                        Mode::Packet8 => "node tests (8-wide when the signs agree)",
+                        Mode::Packet8 => "node tests (8-wide: per packet when the signs agree, per lane when not)",
                         _ => "box tests",
                     },
                     run.prims_per_ray

@@ -101,8 +101,9 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
 }
 
 /// Trees of at least this many wide nodes trace the lanes of an incoherent packet
-/// (mixed direction signs, or spread too wide for the frustum walk) one by one
-/// through the wide single-ray walk instead of walking the binary tree as a packet.
+/// (mixed direction signs) one by one through the wide single-ray walk instead of
+/// walking the binary tree as a packet. (Only trees that the frustum walk serves get
+/// here: it must not be below [`WIDE_PACKET_MIN_NODES`].)
 // Measured (1 thread, interleaved runs, medians): bench-trace torus100k incoherent
 // mode=8 1.14 -> 2.35 Mrays/s (6 pairs; the binary packet walk of 8 unrelated rays
 // fetches the nodes of all eight). Renders of a torus100k mesh with mirror spheres and
@@ -110,7 +111,23 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
 // noise (few packets mix signs there). Lanes sharing their signs but spread too wide
 // for the frustum (shadow rays from a floor towards a point light) keep the binary
 // packet walk: sent lane by lane too, the torus mesh scene rendered ~8 % slower.
+// Camera packets straddling an axis plane (the image's centre row or column, ~0.6 %
+// of the packets at 1024²) mix signs too, and now take eight single-ray walks: about
+// twice the binary packet walk's cost for them, well under 1 % of a frame.
 pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
+const _: () = assert!(LANES_MIN_NODES >= WIDE_PACKET_MIN_NODES);
+
+/// How the any-hit query walks the tree, after the list beside it.
+#[derive(Clone, Copy, PartialEq)]
+enum TreeWalk {
+    /// The 8-wide frustum walk for lanes of these direction signs, if their spread
+    /// allows it (else the binary walk).
+    Frustum { octant: u32, spread: f32 },
+    /// Lane by lane through the 8-wide single-ray walk (mixed signs, large tree).
+    Lanes,
+    /// The binary packet walk.
+    Binary,
+}
 
 impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
@@ -205,8 +222,9 @@ impl Bvh {
         };
     }
 
-    /// [`Bvh::intersect_x8`] through the binary tree only (every packet; the walk of
-    /// packets with mixed direction signs, and the benches' `mode=8b`).
+    /// [`Bvh::intersect_x8`] through the binary tree only: every packet in trees too
+    /// small for the 8-wide walks, packets too spread for the frustum, the benches'
+    /// `mode=8b`, and the tests' oracle of the other packet walks.
     pub fn intersect_x8_binary(
         &self,
         r: &RayPacket8,
@@ -372,12 +390,16 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        if spread < 0.0 || self.wide.nodes.is_empty() {
-            return self.occluded_x8_with(r, active, t_max, None, false, steps);
-        }
-        let wide_octant = shared_octant(r, active & finite_lanes(r)).map(|oct| (oct, spread));
-        let lanes = wide_octant.is_none() && self.wide.nodes.len() >= LANES_MIN_NODES;
-        self.occluded_x8_with(r, active, t_max, wide_octant, lanes, steps)
+        let walk = if spread < 0.0 || self.wide.nodes.is_empty() {
+            TreeWalk::Binary
+        } else {
+            match shared_octant(r, active & finite_lanes(r)) {
+                Some(octant) => TreeWalk::Frustum { octant, spread },
+                None if self.wide.nodes.len() >= LANES_MIN_NODES => TreeWalk::Lanes,
+                None => TreeWalk::Binary,
+            }
+        };
+        self.occluded_x8_with(r, active, t_max, walk, steps)
     }
 
     /// [`Bvh::occluded_x8`] through the binary tree only.
@@ -388,21 +410,17 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_with(r, active, t_max, None, false, steps)
+        self.occluded_x8_with(r, active, t_max, TreeWalk::Binary, steps)
     }
 
-    /// The any-hit query: the list beside the tree, then the wide tree when
-    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
-    /// packet is coherent enough, else lane by lane through the wide tree if `lanes`,
-    /// else the binary tree.
+    /// The any-hit query: the list beside the tree, then the tree as `walk` says.
     #[inline(always)]
     fn occluded_x8_with(
         &self,
         r: &RayPacket8,
         active: Mask8,
         t_max: f32x8,
-        wide_octant: Option<(u32, f32)>,
-        lanes: bool,
+        walk: TreeWalk,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = active;
@@ -424,14 +442,15 @@ impl Bvh {
                         .occluded_x8(PrimKind::FreeQuadric, 0, nq, r, left, t_max),
                 );
         }
-        let wide = wide_octant
-            .filter(|_| left.any())
-            .and_then(|(oct, spread)| {
-                self.occluded_x8_wide(r, left & finite_lanes(r), oct, spread, t_max, steps)
-            });
-        if let Some(blocked) = wide {
+        let frustum = match walk {
+            TreeWalk::Frustum { octant, spread } if left.any() => {
+                self.occluded_x8_wide(r, left & finite_lanes(r), octant, spread, t_max, steps)
+            }
+            _ => None,
+        };
+        if let Some(blocked) = frustum {
             left = left.and_not(blocked);
-        } else if lanes && left.any() {
+        } else if walk == TreeWalk::Lanes && left.any() {
             let tm = t_max.to_array();
             let mut bits = (left & finite_lanes(r)).bits();
             while bits != 0 {

@@ -720,49 +720,47 @@ impl Bvh {
     #[inline(always)]
     fn walk_1<const KZ: usize>(&self, wr: &WideRay, hit: &mut Hit1, steps: &mut Steps) {
         let w = &self.wide;
-        {
-            let br = &wr.boxes;
-            // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
-            // profile (perf, memset) and 30 % of this walk's own time. Entries below
-            // `sp` are always written before they are read.
-            let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
-            let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
-            let mut sp = 0usize;
-            let mut cur = pack(0, INTERIOR);
-            'walk: loop {
-                let (child, meta) = (cur as u32, (cur >> 32) as u32);
-                if meta == INTERIOR {
-                    let node = &w.nodes[child as usize];
-                    steps.boxes += 1;
-                    let (m, near) = br.test(&node.bounds, hit.t);
-                    let mut bits = m.bits();
-                    w.prefetch_children(node, bits);
-                    if bits != 0 {
-                        let first = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        if bits == 0 {
-                            cur = pack(node.child[first], node.meta[first]);
-                            continue 'walk;
-                        }
-                        // two or more: nearest next, the others pushed farthest first
-                        cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
+        let br = &wr.boxes;
+        // Uninitialised: zeroing the two arrays (8 KB) was 12 % of bench-trace's
+        // profile (perf, memset) and 30 % of this walk's own time. Entries below
+        // `sp` are always written before they are read.
+        let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
+        let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
+        let mut sp = 0usize;
+        let mut cur = pack(0, INTERIOR);
+        'walk: loop {
+            let (child, meta) = (cur as u32, (cur >> 32) as u32);
+            if meta == INTERIOR {
+                let node = &w.nodes[child as usize];
+                steps.boxes += 1;
+                let (m, near) = br.test(&node.bounds, hit.t);
+                let mut bits = m.bits();
+                w.prefetch_children(node, bits);
+                if bits != 0 {
+                    let first = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if bits == 0 {
+                        cur = pack(node.child[first], node.meta[first]);
                         continue 'walk;
                     }
-                } else {
-                    self.leaf_intersect_1::<KZ>(child, meta, wr, hit, steps);
+                    // two or more: nearest next, the others pushed farthest first
+                    cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
+                    continue 'walk;
                 }
-                // pop the next subtree still in front of the nearest hit
-                loop {
-                    if sp == 0 {
-                        break 'walk;
-                    }
-                    sp -= 1;
-                    // SAFETY: entries 0..sp (before the decrement) were written above.
-                    let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
-                    if d <= hit.t {
-                        cur = rf;
-                        break;
-                    }
+            } else {
+                self.leaf_intersect_1::<KZ>(child, meta, wr, hit, steps);
+            }
+            // pop the next subtree still in front of the nearest hit
+            loop {
+                if sp == 0 {
+                    break 'walk;
+                }
+                sp -= 1;
+                // SAFETY: entries 0..sp (before the decrement) were written above.
+                let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
+                if d <= hit.t {
+                    cur = rf;
+                    break;
                 }
             }
         }
@@ -862,7 +860,7 @@ impl Bvh {
     ) -> bool {
         let w = &self.wide;
         let br = &wr.boxes;
-        // uninitialised for the same reason as in `intersect_1`
+        // uninitialised for the same reason as in `walk_1`
         let mut stack = [MaybeUninit::<u32>::uninit(); WIDE_STACK];
         stack[0] = MaybeUninit::new(0);
         let mut sp = 1;
