@@ -540,6 +540,29 @@ fn light_inside_a_closed_sphere_lights_nothing_outside() {
 }
 
 #[test]
+fn lights_a_hair_above_or_below_the_floor_keep_their_side() {
+    // 1e-6 from the plane is below half an f32 ulp of the floor's height seen from the
+    // default eye (50 units up): rounded into the fast path's frame, such a light would
+    // sit on the floor, lighting none of it (above) or shining through it (below).
+    // Found by an independent renderer of the spec, which agrees with `reference`.
+    let above = scene("1 48 0 1  0 -40 1e-6  1 1 1  0");
+    let below = scene("1 48 1 sphere 0 0 20 10  1 1 1  0.1 0.9 0 0  1  1  30 30 -1e-6  1 1 1  0");
+    for (name, s) in [("above", &above), ("below", &below)] {
+        let reference = render("reference", s, Camera::default(), 48);
+        let lit = reference.pixels.iter().filter(|p| p[0] > 103).count();
+        assert!(
+            lit > 0 || name == "below",
+            "{name}: the reference lights the floor"
+        );
+        for p in &PROFILES[1..] {
+            let img = render(p, s, Camera::default(), 48);
+            let off = pixels_off(&reference.pixels, &img.pixels, 2);
+            assert_eq!(off, 0, "light {name} the floor [{p}]: {off} pixels off");
+        }
+    }
+}
+
+#[test]
 fn camera_exactly_on_a_surface() {
     // The default eye lies exactly on this sphere (|eye − c| = 30 with c = eye − (0,0,30))
     // and on this plane quadric z = 50.

@@ -32,6 +32,7 @@ use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
+use crate::geometry::floor::Floor32;
 use crate::geometry::{Hit1, PrimKind, PrimSet, Surface8, prim_code, split_code};
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
@@ -236,13 +237,26 @@ impl PacketRenderer {
         prims.moller = moller;
         let bvh = Bvh::build(prims);
         let rel = |p: DVec3| (p - base).as_vec3();
+        // A light keeps its side of the floor plane (z = 0) in the f32 frame: rounded
+        // there, one within half an ulp of the plane (1e-6 above it, seen from 50 units
+        // away) would land on it, light nothing on the floor and shine through it.
+        let floor_z = Floor32::new(base).z;
+        let light_rel = |p: DVec3| {
+            let mut q = rel(p);
+            if p.z > 0.0 && q.z <= floor_z {
+                q.z = floor_z.next_up();
+            } else if p.z < 0.0 && q.z >= floor_z {
+                q.z = floor_z.next_down();
+            }
+            q
+        };
         let points = scene.point_lights.iter().map(|l| Light32 {
-            position: rel(l.position),
+            position: light_rel(l.position),
             color: l.color.as_vec3(),
             cone: None,
         });
         let spots = scene.spot_lights.iter().map(|s| Light32 {
-            position: rel(s.position),
+            position: light_rel(s.position),
             color: s.color.as_vec3(),
             cone: (s.cutoff_deg < 180.0).then(|| {
                 (
