@@ -47,6 +47,8 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
 // interleaved pairs at load ~1.5: 16: incoherent 3.45, 3.55, 3.32 / primary 6.74, 6.70,
 // 6.61; 8: 3.09, 3.48, 3.48 / 6.96, 7.03, 7.00. So 16 trades ~5 % of coherent single
 // rays for ~3 % of incoherent ones (the bar); revisit with a quieter machine.
+// Session 6, 8 against 16, interleaved pairs, median ratios: incoherent mode=1 1.07 (8
+// pairs) then 1.00 (12 pairs); primary mode=1 0.93 (4); primary mode=8 0.92 (8). Kept.
 pub const MERGE_MAX: u32 = 16;
 
 /// Slot `meta` of an interior child (and of an empty slot, whose box never hits).
