@@ -274,6 +274,9 @@ fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
 
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     let (parsed, name) = load(args.scene.as_deref())?;
+    if let (None, Some(e)) = (args.size, &parsed.too_large) {
+        return Err(Failure::input(e.to_string()));
+    }
     let scene = parsed.scene;
     let size = args.size.unwrap_or(viewer::Size {
         width: scene.pixels,
@@ -320,6 +323,10 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
 
 fn run_view(args: &ViewArgs) -> Result<(), Failure> {
     let (parsed, name) = load(args.scene.as_deref())?;
+    // captures are rendered at the scene's own size
+    if let Some(e) = &parsed.too_large {
+        return Err(Failure::input(e.to_string()));
+    }
     let profile_name: &str = match &args.profile {
         Some(name) => name,
         None => viewer::default_profile_name(),

@@ -219,6 +219,43 @@ fn pixels_and_counts_must_be_integers_in_range() {
 }
 
 #[test]
+fn pixels_above_the_render_limit_load_but_render_only_smaller() {
+    // the format allows any pixels >= 1; octaray renders at most MAX_PIXELS per side
+    let big = with_line(2, "20000");
+    let p = parse_scene(&big, "t.txt").expect("a valid scene");
+    assert_eq!(p.scene.pixels, 20000);
+    let e = p
+        .too_large
+        .expect("flagged as too large to render at its own size");
+    assert_eq!((e.line, e.col, e.field.as_str()), (2, 1, "pixels"));
+    assert!(e.message.contains("--size"), "{e}");
+    assert!(parse_scene(BASE, "t.txt").unwrap().too_large.is_none());
+    let dir = std::env::temp_dir().join(format!("octaray-big-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("big.txt");
+    std::fs::write(&file, &big).unwrap();
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_octaray"))
+            .arg("render")
+            .arg(&file)
+            .args(extra)
+            .arg("-o")
+            .arg(dir.join("out.bmp"))
+            .output()
+            .unwrap()
+    };
+    let refused = run(&[]);
+    assert_eq!(refused.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&refused.stderr);
+    assert!(msg.contains("big.txt:2:1: pixels: 20000"), "{msg}");
+    assert!(!dir.join("out.bmp").exists(), "nothing written");
+    let smaller = run(&["--size", "16"]);
+    assert!(smaller.status.success(), "{smaller:?}");
+    assert!(dir.join("out.bmp").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn empty_and_whitespace_files() {
     for text in ["", "   \n\n  // only a comment\n"] {
         let e = err(text);

@@ -14,7 +14,9 @@ use super::{Glass, Material, Object, PointLight, Quadric, Scene, Shape, SpotLigh
 
 /// Largest accepted `recursion_level` (level N gives N − 1 bounces; deeper is pointless).
 pub const MAX_RECURSION_LEVEL: i64 = 1_000_000;
-/// Largest accepted `pixels` (an image side); 16384² RGB is 805 MB.
+/// Largest image side octaray renders (16384² RGB is 805 MB). A scene file may ask for
+/// more (the format allows any `pixels` >= 1): it loads, and rendering it at its own
+/// size is refused with [`Parsed::too_large`], while `--size` may render it smaller.
 pub const MAX_PIXELS: i64 = 16_384;
 /// Largest accepted object or light count.
 pub const MAX_COUNT: i64 = 50_000_000;
@@ -50,6 +52,9 @@ impl std::error::Error for ParseError {}
 pub struct Parsed {
     pub scene: Scene,
     pub warnings: Vec<String>,
+    /// Set when `pixels` exceeds [`MAX_PIXELS`]: the error (at the `pixels` token) to
+    /// report should the scene be rendered at its own size.
+    pub too_large: Option<ParseError>,
 }
 
 /// Reads and parses a scene file.
@@ -95,6 +100,7 @@ pub fn parse_scene(text: &str, file: &str) -> Result<Parsed, ParseError> {
     Ok(Parsed {
         scene,
         warnings: r.warnings,
+        too_large: r.too_large,
     })
 }
 
@@ -160,6 +166,7 @@ struct Reader<'a> {
     /// Position just past the last character, for "end of file" errors.
     end: (usize, usize),
     warnings: Vec<String>,
+    too_large: Option<ParseError>,
 }
 
 impl<'a> Reader<'a> {
@@ -171,6 +178,7 @@ impl<'a> Reader<'a> {
             pos: 0,
             end,
             warnings: Vec::new(),
+            too_large: None,
         }
     }
 
@@ -298,7 +306,18 @@ impl<'a> Reader<'a> {
 
     fn scene(&mut self) -> Result<Scene, ParseError> {
         let recursion_level = self.integer("recursion_level", 0, MAX_RECURSION_LEVEL)? as u32;
-        let pixels = self.integer("pixels", 1, MAX_PIXELS)? as u32;
+        let at = self.peek();
+        let pixels = self.integer("pixels", 1, u32::MAX.into())? as u32;
+        if i64::from(pixels) > MAX_PIXELS {
+            self.too_large = Some(self.error_at(
+                at,
+                "pixels",
+                format!(
+                    "{pixels} is above octaray's limit of {MAX_PIXELS} pixels per side; \
+                     render it smaller with --size"
+                ),
+            ));
+        }
         let n_objects = self.integer("n_objects", 0, MAX_COUNT)?;
         let mut objects = Vec::new();
         let mut per_kind = [0usize; 5];
