@@ -222,6 +222,13 @@ impl Hit1 {
 /// by 1e-3: `tests/extremes.rs`).
 pub const FLOOR_TIE: f32 = 1.0 - 64.0 * f32::EPSILON;
 
+/// The BVH sees primitive bounds clamped to ±2⁴⁴ (1.8e13) in the f32 frame, so that its
+/// SAH sums and products (areas up to 3·2⁹⁰ times counts up to 2²⁸) stay finite. A
+/// sphere of radius 1e19 or at 1e39 made them overflow to inf and NaN, and the build
+/// panicked. Clamping loses only hits beyond 2⁴⁴ from the camera on rays that do not
+/// pass the clamped box, where f32 spacing (2²⁰) has long stopped meaning anything.
+pub const BOUNDS_LIMIT: f32 = 17_592_186_044_416.0;
+
 /// Every primitive of the fast path, by kind, in one f32 frame (coordinates relative
 /// to a base point, e.g. the camera, so far-away scenes keep their precision), with
 /// the scene object each came from (ties in t go to the lower object index; the
@@ -326,14 +333,27 @@ impl PrimSet {
         }
     }
 
-    /// Bounds of a BVH primitive.
+    /// Bounds of a BVH primitive, clamped to ±[`BOUNDS_LIMIT`].
     pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
-        match kind {
+        let b = match kind {
             PrimKind::Sphere => self.spheres[i].bounds(),
             PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].bounds(),
             PrimKind::Quadric => self.quadrics[i].bounds().expect("bounded quadric"),
             PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
-        }
+        };
+        let clamp = |v: Vec3, nan: f32| {
+            v.to_array().map(|c| {
+                if c.is_nan() {
+                    nan
+                } else {
+                    c.clamp(-BOUNDS_LIMIT, BOUNDS_LIMIT)
+                }
+            })
+        };
+        Aabb::new(
+            Vec3::from(clamp(b.lo, -BOUNDS_LIMIT)),
+            Vec3::from(clamp(b.hi, BOUNDS_LIMIT)),
+        )
     }
 
     /// The scene object of a primitive code (the floor: u32::MAX, it loses every tie).
