@@ -271,6 +271,63 @@ fn binary_and_non_utf8_files() {
     assert!(e.message.contains("not a text scene file"), "{e}");
     let e = parse_scene_bytes(b"2 \xff\xfe", "b.bin").unwrap_err();
     assert_eq!((e.line, e.col), (1, 3));
+    assert!(e.message.contains("not a text scene file"), "{e}");
+}
+
+#[test]
+fn stray_bytes_in_comments_and_the_ignored_rest_are_ignored() {
+    // a cp1252 degree sign in the trailing prose, in a comment; a NUL and Ctrl-Z after
+    // the scene: the spec ignores all of these places
+    let given = std::fs::read(scene_path("given.txt")).unwrap();
+    let mut trailer = given.clone();
+    trailer.extend_from_slice(b"\ncutoff angle (in \xb0)\n\x00\x1a");
+    let p = parse_scene_bytes(&trailer, "t.txt").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(p.scene.spot_lights.len(), 1);
+    let mut comment = b"4 // level \xb0 four\n".to_vec();
+    comment.extend_from_slice(&given[2..]);
+    let q = parse_scene_bytes(&comment, "t.txt").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(q.scene, p.scene);
+    // one inside a number the scene needs is still an error at that token
+    let e = parse_scene_bytes(b"2\n6\xb04\n0 0 0", "t.txt").unwrap_err();
+    assert_eq!((e.line, e.col, e.field.as_str()), (2, 1, "pixels"), "{e}");
+}
+
+#[test]
+fn byte_order_mark_and_old_mac_line_ends() {
+    let bom = format!("\u{feff}{BASE}");
+    assert_eq!(
+        parse_scene(&bom, "t.txt").unwrap().scene,
+        parse_scene(BASE, "t.txt").unwrap().scene
+    );
+    // CR alone ends a line: errors name the right line, comments end there
+    let cr = with_line(6, "-5 // radius").replace('\n', "\r");
+    let e = parse_scene(&cr, "t.txt").unwrap_err();
+    assert_eq!(
+        (e.line, e.col, e.field.as_str()),
+        (6, 1, "sphere 1: radius"),
+        "{e}"
+    );
+}
+
+#[test]
+fn prose_opening_with_a_number_word_is_not_a_spotlight_count() {
+    let text = "1 4 0 1  70 70 70  1 1 1\nInfinity and beyond\n";
+    let p = parse_scene(text, "t.txt").unwrap_or_else(|e| panic!("{e}"));
+    assert!(p.scene.spot_lights.is_empty());
+    assert!(
+        p.warnings
+            .iter()
+            .any(|w| w.contains("'Infinity' is not a spotlight count"))
+    );
+    for word in ["NaN", "inf"] {
+        assert!(
+            parse_scene(&text.replace("Infinity", word), "t.txt").is_ok(),
+            "{word}"
+        );
+    }
+    // a number-shaped count out of range is still an error
+    let e = err(&text.replace("Infinity", "1e400"));
+    assert_eq!(e.field, "n_spot_lights");
 }
 
 #[test]

@@ -72,18 +72,26 @@ pub fn parse_scene_file(path: &Path) -> Result<Parsed, ParseError> {
 
 /// Parses scene bytes; rejects binary data and invalid UTF-8 with their position.
 pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError> {
-    let bad = match std::str::from_utf8(bytes) {
-        Ok(text) => {
-            match text.find(|c: char| c == '\0' || (c.is_control() && !c.is_whitespace())) {
-                None => return parse_scene(text, file),
-                Some(i) => i,
-            }
-        }
-        Err(e) => e.valid_up_to(),
+    // Bytes that are not UTF-8 text (a cp1252 degree sign, a NUL) may sit in a comment
+    // or in the ignored rest of the file: they are read as U+FFFD and only matter if the
+    // scene needs the token they are in. A file that fails before its first such byte
+    // fails as usual; one that fails at or after it (a binary file fails at once) is
+    // reported as not a text scene file, at that byte.
+    let text = String::from_utf8_lossy(bytes);
+    let first_bad = match std::str::from_utf8(bytes) {
+        Ok(t) => t.find(|c: char| c == '\0' || (c.is_control() && !c.is_whitespace())),
+        Err(e) => Some(e.valid_up_to()),
+    };
+    let parsed = parse_scene(&text, file);
+    let (Err(e), Some(bad)) = (&parsed, first_bad) else {
+        return parsed;
     };
     let prefix = String::from_utf8_lossy(&bytes[..bad]);
     let line = prefix.matches('\n').count() + 1;
     let col = prefix.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    if (e.line, e.col) < (line, col) {
+        return parsed;
+    }
     Err(ParseError {
         file: file.into(),
         line,
@@ -95,6 +103,8 @@ pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError>
 
 /// Parses scene text. `file` is only used in messages.
 pub fn parse_scene(text: &str, file: &str) -> Result<Parsed, ParseError> {
+    // a byte-order mark, as some editors write, is not part of the first number
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut r = Reader::new(text, file);
     let scene = r.scene()?;
     Ok(Parsed {
@@ -129,14 +139,16 @@ fn tokenize(text: &str) -> (Vec<Token<'_>>, (usize, usize)) {
             if comment {
                 // Skip to the end of the line; the newline itself is handled below.
                 while let Some(&(_, n)) = chars.peek() {
-                    if n == '\n' {
+                    if n == '\n' || n == '\r' {
                         break;
                     }
                     chars.next();
                 }
                 continue;
             }
-            if c == '\n' {
+            // a line ends at LF, CRLF or a lone CR (old Mac files)
+            let lone_cr = c == '\r' && !matches!(chars.peek(), Some((_, '\n')));
+            if c == '\n' || lone_cr {
                 line += 1;
                 col = 1;
             } else {
@@ -374,7 +386,11 @@ impl<'a> Reader<'a> {
                     self.file, self.end.0, self.end.1
                 ));
             }
-            Some(t) if t.text.parse::<f64>().is_err() => {
+            // (a word such as "Infinity" or "NaN" opening prose is not a count)
+            Some(t)
+                if t.text.parse::<f64>().is_err()
+                    || !t.text.bytes().any(|b| b.is_ascii_digit()) =>
+            {
                 let msg = format!(
                     "note: '{}' is not a spotlight count: no spotlights; the rest of the file is ignored",
                     t.text
