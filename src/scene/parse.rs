@@ -78,10 +78,16 @@ pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError>
     // fails as usual; one that fails at or after it (a binary file fails at once) is
     // reported as not a text scene file, at that byte.
     let text = String::from_utf8_lossy(bytes);
-    let first_bad = match std::str::from_utf8(bytes) {
-        Ok(t) => t.find(|c: char| c == '\0' || (c.is_control() && !c.is_whitespace())),
-        Err(e) => Some(e.valid_up_to()),
+    let (valid, invalid_at) = match std::str::from_utf8(bytes) {
+        Ok(t) => (t, None),
+        Err(e) => {
+            let n = e.valid_up_to();
+            // (the first n bytes are valid UTF-8, as from_utf8 reports)
+            (std::str::from_utf8(&bytes[..n]).unwrap_or(""), Some(n))
+        }
     };
+    let control = valid.find(|c: char| c == '\0' || (c.is_control() && !c.is_whitespace()));
+    let first_bad = control.or(invalid_at);
     let parsed = parse_scene(&text, file);
     let (Err(e), Some(bad)) = (&parsed, first_bad) else {
         return parsed;
