@@ -272,6 +272,9 @@ fn binary_and_non_utf8_files() {
     let e = parse_scene_bytes(b"2 \xff\xfe", "b.bin").unwrap_err();
     assert_eq!((e.line, e.col), (1, 3));
     assert!(e.message.contains("not a text scene file"), "{e}");
+    // positions count lines as the tokenizer does (a lone CR ends one)
+    let e = parse_scene_bytes(b"2\r64\r\x00", "b.bin").unwrap_err();
+    assert_eq!((e.line, e.col), (3, 1));
     // a control byte before the first invalid UTF-8 sequence (an ELF header)
     let e = parse_scene_bytes(b"\x7fELF\x02\x01\x01\x00\xff\xfe", "b.bin").unwrap_err();
     assert_eq!((e.line, e.col), (1, 1));

@@ -92,7 +92,10 @@ pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError>
     let (Err(e), Some(bad)) = (&parsed, first_bad) else {
         return parsed;
     };
-    let prefix = String::from_utf8_lossy(&bytes[..bad]);
+    // (lines counted as the tokenizer counts them: LF, CRLF or a lone CR)
+    let prefix = String::from_utf8_lossy(&bytes[..bad])
+        .replace("\r\n", "\n")
+        .replace('\r', "\n");
     let line = prefix.matches('\n').count() + 1;
     let col = prefix.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     if (e.line, e.col) < (line, col) {
