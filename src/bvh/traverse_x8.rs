@@ -117,18 +117,6 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
 pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
 const _: () = assert!(LANES_MIN_NODES >= WIDE_PACKET_MIN_NODES);
 
-/// How the any-hit query walks the tree, after the list beside it.
-#[derive(Clone, Copy, PartialEq)]
-enum TreeWalk {
-    /// The 8-wide frustum walk for lanes of these direction signs, if their spread
-    /// allows it (else the binary walk).
-    Frustum { octant: u32, spread: f32 },
-    /// Lane by lane through the 8-wide single-ray walk (mixed signs, large tree).
-    Lanes,
-    /// The binary packet walk.
-    Binary,
-}
-
 impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
@@ -174,25 +162,25 @@ impl Bvh {
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
-            let done = match shared_octant(r, act) {
-                Some(oct) => self.intersect_x8_wide(r, act, oct, spread, hit, steps),
-                None if self.wide.nodes.len() >= LANES_MIN_NODES => {
-                    self.intersect_x8_lanes(r, act, hit, steps);
-                    true
+            match shared_octant(r, act) {
+                Some(oct) if self.intersect_x8_wide(r, act, oct, spread, hit, steps) => {
+                    self.intersect_beside_x8(r, active, hit, steps);
+                    return;
                 }
-                None => false,
-            };
-            if done {
-                self.intersect_beside_x8(r, active, hit, steps);
-                return;
+                None if self.wide.nodes.len() >= LANES_MIN_NODES => {
+                    self.intersect_x8_lanes(r, active, hit, steps);
+                    return;
+                }
+                _ => {}
             }
         }
         self.intersect_x8_binary(r, active, hit, steps);
     }
 
-    /// The tree part of [`Bvh::intersect_x8`] for an incoherent packet: each lane of
-    /// `active` through the wide single-ray walk.
-    fn intersect_x8_lanes(
+    /// [`Bvh::intersect_x8`] lane by lane: each lane of `active` through
+    /// [`Bvh::intersect_1`] (incoherent packets here, and the renderer's packets of
+    /// too few lanes).
+    pub fn intersect_x8_lanes(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -211,7 +199,7 @@ impl Bvh {
                 u: u[l],
                 v: v[l],
             };
-            self.intersect_wide_1(&r.ray(l), &mut h, steps);
+            self.intersect_1(&r.ray(l), &mut h, steps);
             (t[l], prim[l], u[l], v[l]) = (h.t, h.prim, h.u, h.v);
         }
         *hit = HitPacket8 {
@@ -390,16 +378,38 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        let walk = if spread < 0.0 || self.wide.nodes.is_empty() {
-            TreeWalk::Binary
-        } else {
-            match shared_octant(r, active & finite_lanes(r)) {
-                Some(octant) => TreeWalk::Frustum { octant, spread },
-                None if self.wide.nodes.len() >= LANES_MIN_NODES => TreeWalk::Lanes,
-                None => TreeWalk::Binary,
+        if spread < 0.0 || self.wide.nodes.is_empty() {
+            return self.occluded_x8_with(r, active, t_max, None, steps);
+        }
+        match shared_octant(r, active & finite_lanes(r)) {
+            Some(octant) => self.occluded_x8_with(r, active, t_max, Some((octant, spread)), steps),
+            None if self.wide.nodes.len() >= LANES_MIN_NODES => {
+                self.occluded_x8_lanes(r, active, t_max, steps)
             }
-        };
-        self.occluded_x8_with(r, active, t_max, walk, steps)
+            None => self.occluded_x8_with(r, active, t_max, None, steps),
+        }
+    }
+
+    /// [`Bvh::occluded_x8`] lane by lane through [`Bvh::occluded_1`] (incoherent
+    /// packets here, and the renderer's packets of too few lanes).
+    pub fn occluded_x8_lanes(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let tm = t_max.to_array();
+        let mut blocked = 0;
+        let mut bits = active.bits();
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if self.occluded_1(&r.ray(l), tm[l], steps) {
+                blocked |= 1 << l;
+            }
+        }
+        Mask8::from_bits(blocked)
     }
 
     /// [`Bvh::occluded_x8`] through the binary tree only.
@@ -410,17 +420,19 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_with(r, active, t_max, TreeWalk::Binary, steps)
+        self.occluded_x8_with(r, active, t_max, None, steps)
     }
 
-    /// The any-hit query: the list beside the tree, then the tree as `walk` says.
+    /// The any-hit query: the list beside the tree, then the wide tree when
+    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
+    /// packet is coherent enough, else the binary one.
     #[inline(always)]
     fn occluded_x8_with(
         &self,
         r: &RayPacket8,
         active: Mask8,
         t_max: f32x8,
-        walk: TreeWalk,
+        wide_octant: Option<(u32, f32)>,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = active;
@@ -442,24 +454,14 @@ impl Bvh {
                         .occluded_x8(PrimKind::FreeQuadric, 0, nq, r, left, t_max),
                 );
         }
-        let frustum = match walk {
-            TreeWalk::Frustum { octant, spread } if left.any() => {
+        let frustum = match wide_octant {
+            Some((octant, spread)) if left.any() => {
                 self.occluded_x8_wide(r, left & finite_lanes(r), octant, spread, t_max, steps)
             }
             _ => None,
         };
         if let Some(blocked) = frustum {
             left = left.and_not(blocked);
-        } else if walk == TreeWalk::Lanes && left.any() {
-            let tm = t_max.to_array();
-            let mut bits = (left & finite_lanes(r)).bits();
-            while bits != 0 {
-                let l = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if self.occluded_wide_1(&r.ray(l), tm[l], steps) {
-                    left = left.and_not(Mask8::from_bits(1 << l));
-                }
-            }
         } else if !self.nodes.is_empty() && left.any() {
             let mut stack = [0u32; STACK_SIZE];
             let mut sp = 1;

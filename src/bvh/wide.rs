@@ -703,8 +703,7 @@ impl Bvh {
         self.intersect_beside_1(r, hit, steps);
     }
 
-    /// The tree part of [`Bvh::intersect_1`] (also the walk of each lane of an
-    /// incoherent packet, `traverse_x8.rs`).
+    /// The tree part of [`Bvh::intersect_1`].
     #[inline]
     pub(super) fn intersect_wide_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
         if !self.wide.nodes.is_empty() && finite(r) {
@@ -843,8 +842,7 @@ impl Bvh {
         self.occluded_beside_1(r, t_max, steps) || self.occluded_wide_1(r, t_max, steps)
     }
 
-    /// The tree part of [`Bvh::occluded_1`] (also the walk of each lane of an
-    /// incoherent shadow packet, `traverse_x8.rs`).
+    /// The tree part of [`Bvh::occluded_1`].
     #[inline]
     pub(super) fn occluded_wide_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
         if self.wide.nodes.is_empty() || !finite(r) {

@@ -33,7 +33,7 @@ use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
 use crate::geometry::floor::Floor32;
-use crate::geometry::{Hit1, PrimKind, PrimSet, Surface8, prim_code, split_code};
+use crate::geometry::{PrimKind, PrimSet, Surface8, prim_code, split_code};
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
 };
@@ -321,19 +321,7 @@ impl PacketRenderer {
     fn closest(&self, r: &RayPacket8, active: Mask8, steps: &mut Steps) -> HitPacket8 {
         let mut hit = HitPacket8::new(f32x8::splat(f32::INFINITY));
         if active.count() <= self.fallback_lanes {
-            let (mut t, mut prim, mut u, mut v) =
-                ([f32::INFINITY; 8], [-1i32; 8], [0.0; 8], [0.0; 8]);
-            for lane in 0..8 {
-                if active.lane(lane) {
-                    let mut h = Hit1::new(f32::INFINITY);
-                    self.bvh.intersect_1(&r.ray(lane), &mut h, steps);
-                    (t[lane], prim[lane], u[lane], v[lane]) = (h.t, h.prim, h.u, h.v);
-                }
-            }
-            hit.t = f32x8::new(t);
-            hit.prim = wide::i32x8::new(prim);
-            hit.u = f32x8::new(u);
-            hit.v = f32x8::new(v);
+            self.bvh.intersect_x8_lanes(r, active, &mut hit, steps);
         } else {
             self.bvh.intersect_x8(r, active, &mut hit, steps);
         }
@@ -343,14 +331,7 @@ impl PacketRenderer {
     /// Lanes of `active` blocked before `t_max`.
     fn occluded(&self, r: &RayPacket8, active: Mask8, t_max: f32x8, steps: &mut Steps) -> Mask8 {
         if active.count() <= self.fallback_lanes {
-            let tm = t_max.to_array();
-            let mut bits = 0;
-            for (lane, &t) in tm.iter().enumerate() {
-                if active.lane(lane) && self.bvh.occluded_1(&r.ray(lane), t, steps) {
-                    bits |= 1 << lane;
-                }
-            }
-            Mask8::from_bits(bits)
+            self.bvh.occluded_x8_lanes(r, active, t_max, steps)
         } else {
             self.bvh.occluded_x8(r, active, t_max, steps)
         }
