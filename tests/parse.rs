@@ -182,6 +182,27 @@ fn zero_spot_direction() {
     );
 }
 
+/// A spotlight direction only has to be finite and non-zero (spec §1): lengths whose
+/// square overflows or underflows f64 are valid, and give the same unit direction.
+#[test]
+fn spot_directions_of_extreme_length() {
+    let unit = |line: &str| {
+        parse_scene(&with_line(22, line), "inline")
+            .unwrap_or_else(|e| panic!("{line}: {e}"))
+            .scene
+            .spot_lights[0]
+            .direction
+    };
+    for line in ["0 0 -1e200", "0 0 -1e-200", "0 0 -5e-324", "0 0 -1.7e308"] {
+        assert_eq!(unit(line), glam::DVec3::NEG_Z, "{line}");
+    }
+    let d = unit("3e-310 0 -4e-310");
+    assert!(
+        (d - glam::DVec3::new(0.6, 0.0, -0.8)).length() < 1e-12,
+        "{d}"
+    );
+}
+
 #[test]
 fn cutoff_outside_0_to_180() {
     assert_err(

@@ -180,6 +180,13 @@ impl Bvh {
     /// [`Bvh::intersect_x8`] lane by lane: each lane of `active` through
     /// [`Bvh::intersect_1`] (incoherent packets here, and the renderer's packets of
     /// too few lanes).
+    // Tried (session 7): the eight walks interleaved, one node or leaf step of each
+    // live lane in turn (the walk's state in a struct, its stack per lane), so that one
+    // lane's prefetches land while the others run. bench-trace torus100k, 1 thread,
+    // interleaved runs on one core: incoherent mode=8 median 2.59 -> 2.68 Mrays/s (16
+    // pairs, 10 in its favour), but the step-shaped single-ray walk it shares lost
+    // ~4 % in incoherent mode=1 (8 pairs) and ~10 % in primary mode=1 (6 pairs).
+    // Not kept: the walk is not waiting on single fetches so much as on their number.
     pub fn intersect_x8_lanes(
         &self,
         r: &RayPacket8,

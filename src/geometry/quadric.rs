@@ -152,9 +152,25 @@ fn terms<T: Lanes>(k: &[f64; 10], x: T, y: T, z: T, f: impl Fn(T) -> T) -> T {
         + f(c(9))
 }
 
+/// Relative margin of [`ellipsoid_bounds`]' definiteness test.
+const DEFINITE_MARGIN: f64 = 1e-8;
+
 /// Bounds of {F = 0} when the quadratic part M is definite (an ellipsoid): centre
 /// c = −M⁻¹g/2, half-extent along axis i √(k·(M⁻¹)ᵢᵢ) with k = −F(c), padded by a
 /// relative 1e-5 against rounding. `k` holds the ten coefficients (f64).
+///
+/// Definite with a margin: each leading principal minor must exceed [`DEFINITE_MARGIN`]
+/// times the sum of its terms' magnitudes, far above their f64 rounding error (~1e-15
+/// of that sum). A form within rounding of singular (a tilted pair of parallel planes
+/// written with decimal coefficients: exact minors 5.2e-3, 1e-19 and −1.4e-33) could
+/// otherwise get the signs of an ellipsoid, and bounds from the inverse of a nearly
+/// singular matrix that the surface leaves: rays outside them never tested it, so it
+/// and its shadows vanished from the fast path (an independent renderer of the spec
+/// found it; `tests/extremes.rs::quadric_extremes` keeps the case). A form failing
+/// the margin (a strongly elongated ellipsoid tilted off the axes may too) stays
+/// unbounded, in the list beside the tree: that costs time, never a hit. The margin
+/// also keeps the cancellation in the inverse (rounding ~1e-16 over at least 1e-8)
+/// far inside the pad.
 fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     let [a, b, c, d, e, f, g, h, i, j] = *k;
     let m = glam::DMat3::from_cols(
@@ -162,13 +178,20 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
         DVec3::new(d / 2.0, b, f / 2.0),
         DVec3::new(e / 2.0, f / 2.0, c),
     );
-    // definite: leading principal minors all positive (or, for −M, alternating)
-    let m1 = a;
-    let m2 = a * b - d * d / 4.0;
-    let m3 = m.determinant();
-    let sign = if m1 > 0.0 && m2 > 0.0 && m3 > 0.0 {
+    let (hd, he, hf) = (d / 2.0, e / 2.0, f / 2.0);
+    let m2 = a * b - hd * hd;
+    let s2 = (a * b).abs() + hd * hd;
+    let m3 = a * (b * c - hf * hf) - hd * (hd * c - hf * he) + he * (hd * hf - b * he);
+    let s3 = (a * b * c).abs()
+        + (a * hf * hf).abs()
+        + (hd * hd * c).abs()
+        + 2.0 * (hd * hf * he).abs()
+        + (he * he * b).abs();
+    let sign = if !(m2 > DEFINITE_MARGIN * s2 && m3.abs() > DEFINITE_MARGIN * s3) {
+        return None;
+    } else if a > 0.0 && m3 > 0.0 {
         1.0
-    } else if m1 < 0.0 && m2 > 0.0 && m3 < 0.0 {
+    } else if a < 0.0 && m3 < 0.0 {
         -1.0
     } else {
         return None;

@@ -54,6 +54,18 @@ pub fn offset_ray_origin(p: DVec3, err: DVec3, n: DVec3, w: DVec3) -> DVec3 {
     po
 }
 
+/// `v` scaled to unit length, or `None` when it is zero or not finite. Divided by its
+/// largest component first, so that |v|² neither overflows nor underflows: a direction
+/// of (0, 0, −1e200) or (0, 0, −1e-200) is a valid one (spec §1 asks only for finite
+/// numbers), which `DVec3::try_normalize` rejects.
+pub fn unit(v: DVec3) -> Option<DVec3> {
+    let m = v.abs().max_element();
+    if !(m > 0.0 && m.is_finite()) {
+        return None;
+    }
+    (v / m).try_normalize()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,6 +2,8 @@
 
 use glam::DVec3;
 
+use crate::math::float::unit;
+
 /// An orthonormal pinhole camera: `look`, `right`, `up` with right = look × up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -60,14 +62,14 @@ impl Camera {
     /// A camera at `eye` looking at `target` with the given up hint. `None` when the
     /// view direction is zero or parallel to `up`.
     pub fn look_at(eye: DVec3, target: DVec3, up: DVec3, fov_y_deg: f64) -> Option<Camera> {
-        let look = (target - eye).try_normalize()?;
+        let look = unit(target - eye)?;
         Camera::from_look(eye, look, up, fov_y_deg)
     }
 
     /// A camera at `eye` looking along `look`; `up` is made orthogonal to it.
     pub fn from_look(eye: DVec3, look: DVec3, up: DVec3, fov_y_deg: f64) -> Option<Camera> {
-        let look = look.try_normalize()?;
-        let right = look.cross(up).try_normalize()?;
+        let look = unit(look)?;
+        let right = unit(look.cross(unit(up)?))?;
         let up = right.cross(look);
         Some(Camera {
             eye,

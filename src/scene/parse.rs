@@ -413,14 +413,13 @@ impl<'a> Reader<'a> {
                     let (position, _) = self.vec3(&format!("{who}: position"))?;
                     let color = self.color(&format!("{who}: color"))?;
                     let (direction, dt) = self.vec3(&format!("{who}: direction"))?;
-                    let len = direction.length();
-                    if !(len > 0.0 && len.is_finite()) {
+                    let Some(unit) = crate::math::float::unit(direction) else {
                         return Err(self.error_at(
                             Some(dt),
                             &format!("{who}: direction"),
                             "must be a non-zero vector".into(),
                         ));
-                    }
+                    };
                     let field = format!("{who}: cutoff angle");
                     let (cutoff_deg, ct) = self.number(&field)?;
                     if !(0.0..=180.0).contains(&cutoff_deg) {
@@ -433,7 +432,7 @@ impl<'a> Reader<'a> {
                     spot_lights.push(SpotLight {
                         position,
                         color,
-                        direction: direction / len,
+                        direction: unit,
                         cutoff_deg,
                     });
                 }
