@@ -386,6 +386,34 @@ fn huge_finite_numbers_render_on_every_path() {
     }
 }
 
+/// Shininess beyond f32's range: 1e-300 rounded to 0 in f32, and 0's rule (x⁰ = 1)
+/// gave every lit point the full specular term, also where R·V <= 0 (81 of 1024
+/// pixels off by 128/255; found by the independent checker); 1e300 and 1e39 round to
+/// ∞, which must still give 0 below R·V = 1. Pass: at most 4 pixels off by more
+/// than 8/255 from the reference.
+#[test]
+fn shininess_beyond_f32s_range() {
+    let eye = Camera::look_at(
+        DVec3::new(60.0, 0.0, 20.0),
+        DVec3::new(0.0, 0.0, 20.0),
+        Camera::default().up,
+        Camera::default().fov_y_deg,
+    )
+    .unwrap();
+    for shine in ["1e-300", "1e-45", "1e300", "1e39"] {
+        let s = scene(&format!(
+            "1 32 1 sphere 0 0 20 20  1 1 1  0 0.5 0.5 0  {shine}  1  70 10 30  1 1 1  0"
+        ));
+        let reference = render("reference", &s, eye, 32);
+        for p in &PROFILES[1..] {
+            let off = pixels_off(&reference.pixels, &render(p, &s, eye, 32).pixels, 8);
+            println!("shine {shine} [{p}]: {off} pixels off by more than 8/255");
+            // two silhouette pixels differ by rounding whatever the shininess
+            assert!(off <= 4, "shine {shine} [{p}]: {off} pixels off");
+        }
+    }
+}
+
 // ------------------------------------------------------------ 8. quadrics
 
 #[test]
@@ -463,6 +491,32 @@ fn quadric_extremes() {
             "1 32 1 {pair}  {clip}  0 0.7 0.5  0.2 0.5 0.3 0  1  1  22 55 100  1 1 1  0"
         ));
         matches_everywhere(&format!("plane pair, box {clip}"), &s, slanted, 32);
+    }
+    // A tilted needle (semi-axes 0.01, 0.01, 5) seen from ~1000 units through a
+    // 0.0046° field of view framed on its tip: its bounds once came out too short
+    // (k = −(j + g·c/2) took the centre's rounding times |g|) and cut the tip off.
+    let needle = scene(
+        "1 64 1 general 7788.240360466663 2221.9629678465376 9989.836671686791
+                 -8295.335649028953 299.85889592587864 562.3192829346652 -110793.96962452022
+                 44747.10283824508 -396556.8085747066 4288372.900117704  0 0 0  0 0 0
+         1 0 0  1 0 0 0  1  0  0",
+    );
+    let tip = Camera::look_at(
+        DVec3::new(-728.5329205852479, 397.2701633903234, 569.0448261229482),
+        DVec3::new(0.6485278618452219, -11.40966782888066, 20.15940019578627),
+        DVec3::new(-0.4702944276309556, -0.8819335657761322, 0.0318800391572539),
+        0.004583662358601966,
+    )
+    .unwrap();
+    let reference = render("reference", &needle, tip, 64);
+    let seen = reference.pixels.iter().filter(|p| p[0] > 100).count();
+    assert!(
+        seen >= 24,
+        "the reference sees the needle's tip ({seen} pixels)"
+    );
+    for p in &PROFILES[1..] {
+        let off = pixels_off(&reference.pixels, &render(p, &needle, tip, 64).pixels, 8);
+        assert!(off <= 2, "needle tip [{p}]: {off} pixels off");
     }
     // The camera at the centre of an unclipped ellipsoid (semi-axes 100, 100, 50)
     // sees its lit inside.
@@ -592,19 +646,40 @@ fn spotlight_cutoffs_0_90_180() {
     matches_everywhere("spot 90", &spot("90"), Camera::default(), 64);
 }
 
-/// Spotlights of 0.05° and 0.005° straight down onto the floor, seen from close by (an
-/// independent renderer of the spec found both lit discs too wide in `fast` and
-/// `accurate`: the cone test in f32 cosines resolved only ~0.02°). Pass: every
+/// Spotlights of 0.05° and 0.005° straight down onto the floor, and of 1e-5° tilted,
+/// seen from close by (an independent renderer of the spec found the lit discs too
+/// wide in `fast` and `accurate`: the cone test in f32 cosines resolved only ~0.02°;
+/// then the 1e-5° one shifted by f32's rounding of the axis). Pass: every
 /// profile within 2/255 of the reference on all but 0.1 % of the pixels, and the
 /// disc is in the picture (over a tenth of it lit).
 #[test]
 fn narrow_spotlights_light_the_right_disc() {
+    let tilted = "2.983281572999747 3.7777087639996636 8.94427190999916  1 1 1
+                  -0.2683281572999747 -0.35777087639996635 -0.8944271909999159";
     let cases = [
-        ("0.05", "5.3 5.9 100", [5.3, 5.87, 0.19], [5.3, 5.9, 0.0]),
-        ("0.005", "0.3 0.2 1000", [0.3, 0.15, 0.25], [0.3, 0.2, 0.0]),
+        (
+            "0.05",
+            "5.3 5.9 100  1 1 1  0 0 -1",
+            [5.3, 5.87, 0.19],
+            [5.3, 5.9, 0.0],
+        ),
+        (
+            "0.005",
+            "0.3 0.2 1000  1 1 1  0 0 -1",
+            [0.3, 0.15, 0.25],
+            [0.3, 0.2, 0.0],
+        ),
+        // tilted towards (0.3, 0.2, 0) from 10 away: a disc 2e-6 across, in f32's
+        // ~1e-7 rad of rounding a fifth of the cone (the f64 test)
+        (
+            "1e-5",
+            tilted,
+            [0.3, 0.2, 4.8783435632227765e-06],
+            [0.3, 0.20000000195133744, 0.0],
+        ),
     ];
     for (cutoff, light, eye, target) in cases {
-        let s = scene(&format!("1 128 0 0 1  {light}  1 1 1  0 0 -1  {cutoff}"));
+        let s = scene(&format!("1 128 0 0 1  {light}  {cutoff}"));
         let cam = Camera::look_at(
             DVec3::from_array(eye),
             DVec3::from_array(target),

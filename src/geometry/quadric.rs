@@ -172,7 +172,7 @@ const DEFINITE_MARGIN: f64 = 1e-8;
 /// also keeps the cancellation in the inverse (rounding ~1e-16 over at least 1e-8)
 /// far inside the pad.
 fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
-    let [a, b, c, d, e, f, g, h, i, j] = *k;
+    let [a, b, c, d, e, f, g, h, i, _] = *k;
     let m = glam::DMat3::from_cols(
         DVec3::new(a, d / 2.0, e / 2.0),
         DVec3::new(d / 2.0, b, f / 2.0),
@@ -200,7 +200,16 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     let g = DVec3::new(g, h, i) * sign;
     let inv = m.inverse();
     let centre = -(inv * g) / 2.0;
-    let kk = -(j * sign + g.dot(centre) / 2.0);
+    // k = −F(c), evaluated as F itself: ∇F(c) = 0, so an error e in the centre (the
+    // solve's, ~cond(M)·ε·|c|) changes it only by eᵀMe. The shortcut −(j + g·c/2)
+    // takes e times |g| instead: for a tilted needle (semi-axes 0.01 and 5) 1000
+    // units from the frame's origin, k came out tens of percent small and the box
+    // cut the needle's tip off (found by an independent renderer of the spec). Raised
+    // by a bound on F's own rounding (ten terms summed: γ(12)·Σ|term|), so that far
+    // from the origin, where the terms dwarf k, the box grows instead of shrinking.
+    let (x, y, z) = (centre.x, centre.y, centre.z);
+    let rounding = 12.0 * f64::EPSILON * terms(k, x, y, z, f64::abs);
+    let kk = -sign * terms(k, x, y, z, |t| t) + rounding;
     if kk.is_nan() || kk <= 0.0 {
         return None;
     }

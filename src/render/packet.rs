@@ -37,7 +37,7 @@ use crate::geometry::{PrimKind, PrimSet, Surface8, prim_code, split_code};
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
 };
-use crate::scene::{Floor, Glass, Material, Scene};
+use crate::scene::{Floor, Glass, Material, Scene, SpotLight};
 
 /// Calls `$r.$method::<ANY_HIT, EPS, GLASS>(args)` with the renderer's knobs and the
 /// scene's glass as constants: the one place a frame picks its compiled instance.
@@ -93,7 +93,13 @@ impl Mat32 {
             kd: m.kd as f32,
             ks: m.ks as f32,
             kr: m.kr as f32,
-            shine: m.shine as f32,
+            // a positive shine stays positive (1e-300 would round to 0, whose rule,
+            // x^0 = 1, lights every point with the full specular term)
+            shine: if m.shine > 0.0 {
+                (m.shine as f32).max(f32::from_bits(1))
+            } else {
+                0.0
+            },
         }
     }
 }
@@ -113,8 +119,10 @@ struct Light32 {
 /// Sines of small angles keep their relative precision where cosines do not: the
 /// test `axis · w >= cos φ·|w|` in f32 resolved angles only to ~0.02° near the axis
 /// (cos φ within an ulp of 1), so a 0.05° spotlight lit a disc twice too wide on
-/// 2 % of a 256² view (an independent renderer of the spec found it). Here the
-/// limit is the f32 axis itself, ~1e-7 rad.
+/// 2 % of a 256² view. In f32 the limit is then the rounded axis and light position,
+/// ~1e-7 rad: still a fifth of a 1e-5° cone, which shifted its disc (3.8 % of the
+/// pixels of a view framed on it). Cones within [`NARROW_CONE_DEG`] of 0° or 180°
+/// are therefore tested in f64 (both found by an independent renderer of the spec).
 #[derive(Clone, Copy, Debug)]
 struct Cone32 {
     axis: Vec3,
@@ -122,23 +130,53 @@ struct Cone32 {
     sin: f32,
     /// φ >= 90°: points behind the light's plane can be inside.
     wide: bool,
+    /// A narrow cone (or the narrow dark cone behind a nearly full one): the axis and
+    /// the light's position relative to the frame's origin, unrounded, and cos φ, sin φ.
+    exact: Option<(DVec3, DVec3, f64, f64)>,
 }
 
+/// Spotlights whose cutoff lies within this of 0° or 180° test their cone in f64,
+/// where f32's ~1e-7 rad of rounding would be a visible part of it.
+const NARROW_CONE_DEG: f64 = 0.1;
+
 impl Cone32 {
-    fn new(axis: Vec3, cutoff_deg: f64) -> Cone32 {
-        let (sin, cos) = cutoff_deg.to_radians().sin_cos();
+    /// The cone of spotlight `s` in the frame centred on `base`.
+    fn new(s: &SpotLight, base: DVec3) -> Cone32 {
+        let phi = s.cutoff_deg;
+        // exactly 90°: cos φ = 0, so that points in the light's plane (axis · w = 0)
+        // are inside, as the reference's atan2 finds them (cos(π/2) rounds to 6e-17)
+        let (sin, cos) = if phi == 90.0 {
+            (1.0, 0.0)
+        } else {
+            phi.to_radians().sin_cos()
+        };
+        let narrow = phi.min(180.0 - phi) < NARROW_CONE_DEG;
         Cone32 {
-            axis,
+            axis: s.direction.as_vec3(),
             cos: cos as f32,
             sin: sin as f32,
-            wide: cutoff_deg >= 90.0,
+            wide: phi >= 90.0,
+            exact: narrow.then(|| (s.direction, s.position - base, cos, sin)),
         }
     }
 
-    /// Lanes whose w = P − Lp lies inside the cone.
+    /// Lanes whose point `p` (frame coordinates) is inside the cone; `lp` is the
+    /// light's position in the frame.
     #[inline(always)]
-    fn contains(&self, w: Vec3x8) -> Mask8 {
+    fn contains(&self, p: Vec3x8, lp: Vec3x8) -> Mask8 {
+        if let Some((axis, apex, cos, sin)) = self.exact {
+            let mut bits = 0;
+            for i in 0..8 {
+                let w = p.lane(i).as_dvec3() - apex;
+                let c = axis.dot(w);
+                if axis.cross(w).length() * cos <= c * sin && (self.wide || c >= 0.0) {
+                    bits |= 1 << i;
+                }
+            }
+            return Mask8::from_bits(bits);
+        }
         let axis = Vec3x8::splat(self.axis);
+        let w = p - lp;
         let c = axis.dot(w);
         let s = axis.cross(w).length();
         let inside = (s * f32x8::splat(self.cos)).le(c * f32x8::splat(self.sin));
@@ -301,7 +339,7 @@ impl PacketRenderer {
         let spots = scene.spot_lights.iter().map(|s| Light32 {
             position: light_rel(s.position),
             color: s.color.as_vec3(),
-            cone: (s.cutoff_deg < 180.0).then(|| Cone32::new(s.direction.as_vec3(), s.cutoff_deg)),
+            cone: (s.cutoff_deg < 180.0).then(|| Cone32::new(s, base)),
         });
         let materials: Vec<Mat32> = scene
             .objects
@@ -629,7 +667,7 @@ impl PacketRenderer {
         // spotlight only: skip lanes outside the cone (hard edge)
         if let Some(cone) = &light.cone {
             stats.cone_tests += m.count() as u64;
-            m = m & cone.contains(p - lp);
+            m = m & cone.contains(p, lp);
         }
         let to_light = lp - p;
         let dist = to_light.length();
