@@ -219,8 +219,8 @@ impl Hit1 {
 /// the floor, bouncing up to recursion level 1000, leaked through the base where the
 /// floor won (the picture 47 % too bright, 18.4 dB from the reference; 25.0 dB and
 /// within 1.2 % with 64 ulps, as close as the reference to itself with the eye moved
-/// by 1e-3: `tests/extremes.rs`). The window is not applied to objects wholly below
-/// the floor seen from above ([`PrimSet::below_floor`]).
+/// by 1e-3: `tests/extremes.rs`). The window is not applied to objects wholly behind
+/// the floor plane from the ray's origin ([`PrimSet::floor_side`]).
 pub const FLOOR_TIE: f32 = 1.0 - 64.0 * f32::EPSILON;
 
 /// The BVH sees primitive bounds clamped to ±2⁴⁴ (1.8e13) in the f32 frame, so that its
@@ -247,14 +247,18 @@ pub struct PrimSet {
     pub floor: Option<floor::Floor32>,
     /// Number of degenerate triangles and all-zero quadrics dropped (never hit).
     pub dropped: usize,
-    /// By object index, whether the object lies wholly below the floor plane (world
-    /// z < 0); empty when none does, and then no ray pays for the test. A ray from
-    /// above the floor whose nearest hit so far is such an object crossed the floor
-    /// plane first, so it takes the floor wherever it meets it, whatever the rounding
-    /// of the two distances: [`FLOOR_TIE`]'s window is for surfaces lying on the
-    /// floor, and let a square 0.0002 below it (52 f32 ulps of the eye's height)
-    /// replace the visible floor (found by an independent renderer of the spec).
-    pub below_floor: Vec<bool>,
+    /// By object index, the side of the floor plane the object lies wholly on: −1
+    /// below (world z < 0), +1 above, 0 touching or crossing it (or unbounded). A ray
+    /// whose nearest hit so far is an object wholly on the far side of the plane from
+    /// its origin crossed the plane first, so it takes the floor wherever it meets it,
+    /// whatever the rounding of the two distances: [`FLOOR_TIE`]'s window is for
+    /// surfaces lying on the floor, and let a square 0.0002 below it (52 f32 ulps of
+    /// the eye's height) replace the visible floor, and one 0.0002 above it seen from
+    /// below (found by an independent renderer of the spec). Empty, so that no ray
+    /// pays for the test, unless some ray can meet the plane with such an object
+    /// behind it: some object lies wholly below the floor, or one wholly above it while
+    /// the eye (`base`) or some object's lowest point is below it.
+    pub floor_side: Vec<i8>,
     /// The triangles are of kind [`PrimKind::TriangleMoller`] (plain test), not
     /// [`PrimKind::Triangle`] (watertight).
     pub moller: bool,
@@ -268,9 +272,11 @@ impl PrimSet {
             floor: Some(floor::Floor32::new(base)),
             ..PrimSet::default()
         };
-        // the highest world z of each object (+∞: unbounded, or not known to be low)
+        // the lowest and highest world z of each object (±∞: unbounded)
         let mut tops = vec![f64::INFINITY; scene.objects.len()];
+        let mut bottoms = vec![f64::NEG_INFINITY; scene.objects.len()];
         let highest = |v: &[DVec3]| v.iter().fold(f64::NEG_INFINITY, |z, p| z.max(p.z));
+        let lowest = |v: &[DVec3]| v.iter().fold(f64::INFINITY, |z, p| z.min(p.z));
         for (i, o) in scene.objects.iter().enumerate() {
             let id = i as u32;
             match &o.shape {
@@ -278,11 +284,11 @@ impl PrimSet {
                     s.spheres
                         .push(sphere::Sphere32::new(*center, *radius, base));
                     s.sphere_obj.push(id);
-                    tops[i] = center.z + radius;
+                    (bottoms[i], tops[i]) = (center.z - radius, center.z + radius);
                 }
                 Shape::Triangle { v } => {
                     s.push_triangle(v, base, id);
-                    tops[i] = highest(v);
+                    (bottoms[i], tops[i]) = (lowest(v), highest(v));
                 }
                 Shape::Quadric(q) => {
                     if q.is_degenerate() {
@@ -291,8 +297,8 @@ impl PrimSet {
                     }
                     let q32 = quadric::Quadric32::new(q, base);
                     if let Some(b) = q32.bounds() {
-                        // rounded outwards to f32: a conservative top
-                        tops[i] = b.hi.z as f64 + base.z;
+                        // rounded outwards to f32: conservative
+                        (bottoms[i], tops[i]) = (b.lo.z as f64 + base.z, b.hi.z as f64 + base.z);
                         s.quadrics.push(q32);
                         s.quadric_obj.push(id);
                     } else {
@@ -304,7 +310,7 @@ impl PrimSet {
                     for f in prism_faces(v) {
                         s.push_triangle(&f, base, id);
                     }
-                    tops[i] = highest(v);
+                    (bottoms[i], tops[i]) = (lowest(v), highest(v));
                 }
                 Shape::Mesh(m) => {
                     s.triangles.reserve(m.triangles.len());
@@ -312,25 +318,31 @@ impl PrimSet {
                     for k in 0..m.triangles.len() {
                         s.push_triangle(&m.triangle(k), base, id);
                     }
-                    tops[i] = highest(&m.vertices);
+                    (bottoms[i], tops[i]) = (lowest(&m.vertices), highest(&m.vertices));
                 }
             }
         }
-        if tops.iter().any(|&z| z < 0.0) {
-            s.below_floor = tops.iter().map(|&z| z < 0.0).collect();
+        let any_below = tops.iter().any(|&z| z < 0.0);
+        let any_above = bottoms.iter().any(|&z| z > 0.0);
+        let rays_from_below = base.z < 0.0 || bottoms.iter().any(|&z| z < 0.0);
+        if any_below || (any_above && rays_from_below) {
+            s.floor_side = (0..tops.len())
+                .map(|i| (bottoms[i] > 0.0) as i8 - (tops[i] < 0.0) as i8)
+                .collect();
         }
         s
     }
 
     /// Whether the floor test of a ray from `origin_z` (frame) must drop its tie window
-    /// for the hit `code`: an object wholly below the floor, seen from above it.
+    /// for the hit `code`: an object wholly on the far side of the floor plane.
     #[inline]
-    fn below_floor_hit(&self, code: i32, origin_z: f32, floor_z: f32) -> bool {
-        origin_z > floor_z
-            && self
-                .below_floor
-                .get(self.object(code) as usize)
-                .is_some_and(|&b| b)
+    fn behind_floor_hit(&self, code: i32, origin_z: f32, floor_z: f32) -> bool {
+        let side = self.floor_side.get(self.object(code) as usize).copied();
+        match side {
+            Some(-1) => origin_z > floor_z,
+            Some(1) => origin_z < floor_z,
+            _ => false,
+        }
     }
 
     fn push_triangle(&mut self, v: &[DVec3; 3], base: DVec3, id: u32) {
@@ -479,12 +491,12 @@ impl PrimSet {
                     if let Some(f) = &self.floor {
                         let hits = hit.hit_mask();
                         let mut t_max = hits.select(hit.t * f32x8::splat(FLOOR_TIE), hit.t);
-                        // lanes whose hit lies wholly below the floor, seen from above
+                        // lanes whose hit lies wholly behind the floor plane
                         let mut below = 0;
-                        if !self.below_floor.is_empty() {
+                        if !self.floor_side.is_empty() {
                             let (prim, oz) = (hit.prim.to_array(), r.origin.z.to_array());
                             for l in 0..8 {
-                                if hits.lane(l) && self.below_floor_hit(prim[l], oz[l], f.z) {
+                                if hits.lane(l) && self.behind_floor_hit(prim[l], oz[l], f.z) {
                                     below |= 1 << l;
                                 }
                             }
@@ -579,9 +591,9 @@ impl PrimSet {
                 }
                 PrimKind::Floor => {
                     let Some(f) = &self.floor else { continue };
-                    // a hit wholly below the floor, seen from above: the floor replaces
+                    // a hit wholly behind the floor plane: the floor replaces
                     // it wherever the ray meets it
-                    let below = hit.is_hit() && self.below_floor_hit(hit.prim, r.origin.z, f.z);
+                    let below = hit.is_hit() && self.behind_floor_hit(hit.prim, r.origin.z, f.z);
                     let t_max = match (hit.is_hit(), below) {
                         (_, true) => f32::INFINITY,
                         (true, false) => hit.t * FLOOR_TIE,
