@@ -41,6 +41,12 @@ fn render(profile: &str, scene: &Scene, camera: Camera, size: u32) -> Framebuffe
         .image
 }
 
+/// The default camera's up vector and field of view, at `eye` looking at `target`.
+fn aimed(eye: DVec3, target: DVec3) -> Camera {
+    let d = Camera::default();
+    Camera::look_at(eye, target, d.up, d.fov_y_deg).unwrap()
+}
+
 /// Renders on every profile and checks each against the reference; returns the images.
 fn matches_everywhere(name: &str, scene: &Scene, camera: Camera, size: u32) -> Vec<Framebuffer> {
     matches_with_psnr(name, scene, camera, size, 40.0)
@@ -393,13 +399,7 @@ fn huge_finite_numbers_render_on_every_path() {
 /// than 8/255 from the reference.
 #[test]
 fn shininess_beyond_f32s_range() {
-    let eye = Camera::look_at(
-        DVec3::new(60.0, 0.0, 20.0),
-        DVec3::new(0.0, 0.0, 20.0),
-        Camera::default().up,
-        Camera::default().fov_y_deg,
-    )
-    .unwrap();
+    let eye = aimed(DVec3::new(60.0, 0.0, 20.0), DVec3::new(0.0, 0.0, 20.0));
     for shine in ["1e-300", "1e-45", "1e300", "1e39"] {
         let s = scene(&format!(
             "1 32 1 sphere 0 0 20 20  1 1 1  0 0.5 0.5 0  {shine}  1  70 10 30  1 1 1  0"
@@ -479,13 +479,7 @@ fn quadric_extremes() {
     let pair = "general 0.00515754349675 3.71322866792e-05 0.00480532421657 0.000875240272569
                         -0.00995663972693 -0.000844825843345 0.199132794539 0.0168965168669
                         -0.192212968663 0.922129686627";
-    let slanted = Camera::look_at(
-        DVec3::new(100.0, 80.0, 60.0),
-        DVec3::new(0.0, 0.0, 20.0),
-        Camera::default().up,
-        Camera::default().fov_y_deg,
-    )
-    .unwrap();
+    let slanted = aimed(DVec3::new(100.0, 80.0, 60.0), DVec3::new(0.0, 0.0, 20.0));
     for clip in ["0 0 0  0 0 0", "-40 -40 -10  80 80 60"] {
         let s = scene(&format!(
             "1 32 1 {pair}  {clip}  0 0.7 0.5  0.2 0.5 0.3 0  1  1  22 55 100  1 1 1  0"
@@ -680,13 +674,7 @@ fn narrow_spotlights_light_the_right_disc() {
     ];
     for (cutoff, light, eye, target) in cases {
         let s = scene(&format!("1 128 0 0 1  {light}  {cutoff}"));
-        let cam = Camera::look_at(
-            DVec3::from_array(eye),
-            DVec3::from_array(target),
-            Camera::default().up,
-            Camera::default().fov_y_deg,
-        )
-        .unwrap();
+        let cam = aimed(DVec3::from_array(eye), DVec3::from_array(target));
         let reference = render("reference", &s, cam, 128);
         let lit = reference.pixels.iter().filter(|p| p[0] > 150).count();
         assert!(
@@ -812,13 +800,7 @@ fn objects_just_below_the_floor_stay_hidden() {
         "1 32 2 {}  1  0 0 -100  1 1 1  0",
         square("0.0002")
     ));
-    let below = Camera::look_at(
-        DVec3::new(37.0, 23.0, -50.0),
-        DVec3::new(3.0, 7.0, 0.0),
-        Camera::default().up,
-        Camera::default().fov_y_deg,
-    )
-    .unwrap();
+    let below = aimed(DVec3::new(37.0, 23.0, -50.0), DVec3::new(3.0, 7.0, 0.0));
     no_red_behind_the_floor("square 0.0002 above, eye below", &s, below);
 }
 
