@@ -802,6 +802,19 @@ fn objects_just_below_the_floor_stay_hidden() {
     ));
     let below = aimed(DVec3::new(37.0, 23.0, -50.0), DVec3::new(3.0, 7.0, 0.0));
     no_red_behind_the_floor("square 0.0002 above, eye below", &s, below);
+    // the same from a renderer prepared for a first frame from above (the viewer
+    // flying under the floor keeps its prepared renderer)
+    for p in PROFILES {
+        let profile = Profile::by_name(p).unwrap();
+        let prepared = profile.prepare(&s);
+        prepared.render(&settings(&s, Camera::default(), 32));
+        let img = prepared.render(&settings(&s, below, 32)).image;
+        let fresh = render(p, &s, below, 32);
+        assert_eq!(
+            img.pixels, fresh.pixels,
+            "[{p}] prepared from above, then below"
+        );
+    }
 }
 
 /// The pass criterion of [`objects_just_below_the_floor_stay_hidden`].

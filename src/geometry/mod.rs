@@ -254,11 +254,17 @@ pub struct PrimSet {
     /// whatever the rounding of the two distances: [`FLOOR_TIE`]'s window is for
     /// surfaces lying on the floor, and let a square 0.0002 below it (52 f32 ulps of
     /// the eye's height) replace the visible floor, and one 0.0002 above it seen from
-    /// below (found by an independent renderer of the spec). Empty, so that no ray
-    /// pays for the test, unless some ray can meet the plane with such an object
-    /// behind it: some object lies wholly below the floor, or one wholly above it while
-    /// the eye (`base`) or some object's lowest point is below it.
+    /// below (found by an independent renderer of the spec). Empty when no object lies
+    /// wholly on one side; otherwise a ray pays for the lookup only when it comes from
+    /// the side opposite such an object ([`PrimSet::any_below`], [`PrimSet::any_above`]):
+    /// in a scene seen from above with nothing below the floor, one compare per packet.
+    /// Whatever the eye: a prepared renderer serves every camera (the viewer), and
+    /// photons start at the lights.
     pub floor_side: Vec<i8>,
+    /// Some object lies wholly below the floor plane.
+    pub any_below: bool,
+    /// Some object lies wholly above the floor plane.
+    pub any_above: bool,
     /// The triangles are of kind [`PrimKind::TriangleMoller`] (plain test), not
     /// [`PrimKind::Triangle`] (watertight).
     pub moller: bool,
@@ -322,10 +328,9 @@ impl PrimSet {
                 }
             }
         }
-        let any_below = tops.iter().any(|&z| z < 0.0);
-        let any_above = bottoms.iter().any(|&z| z > 0.0);
-        let rays_from_below = base.z < 0.0 || bottoms.iter().any(|&z| z < 0.0);
-        if any_below || (any_above && rays_from_below) {
+        s.any_below = tops.iter().any(|&z| z < 0.0);
+        s.any_above = bottoms.iter().any(|&z| z > 0.0);
+        if s.any_below || s.any_above {
             s.floor_side = (0..tops.len())
                 .map(|i| (bottoms[i] > 0.0) as i8 - (tops[i] < 0.0) as i8)
                 .collect();
@@ -337,12 +342,14 @@ impl PrimSet {
     /// for the hit `code`: an object wholly on the far side of the floor plane.
     #[inline]
     fn behind_floor_hit(&self, code: i32, origin_z: f32, floor_z: f32) -> bool {
-        let side = self.floor_side.get(self.object(code) as usize).copied();
-        match side {
-            Some(-1) => origin_z > floor_z,
-            Some(1) => origin_z < floor_z,
-            _ => false,
-        }
+        let far = if origin_z > floor_z {
+            self.any_below.then_some(-1)
+        } else if origin_z < floor_z {
+            self.any_above.then_some(1)
+        } else {
+            None
+        };
+        far.is_some_and(|side| self.floor_side.get(self.object(code) as usize) == Some(&side))
     }
 
     fn push_triangle(&mut self, v: &[DVec3; 3], base: DVec3, id: u32) {
@@ -493,10 +500,20 @@ impl PrimSet {
                         let mut t_max = hits.select(hit.t * f32x8::splat(FLOOR_TIE), hit.t);
                         // lanes whose hit lies wholly behind the floor plane
                         let mut below = 0;
-                        if !self.floor_side.is_empty() {
+                        // lanes from the side opposite some object's (one compare)
+                        let fz = f32x8::splat(f.z);
+                        let mut ask = Mask8::from_bits(0);
+                        if self.any_below {
+                            ask = ask | r.origin.z.gt(fz);
+                        }
+                        if self.any_above {
+                            ask = ask | r.origin.z.lt(fz);
+                        }
+                        let ask = ask & hits;
+                        if ask.any() {
                             let (prim, oz) = (hit.prim.to_array(), r.origin.z.to_array());
                             for l in 0..8 {
-                                if hits.lane(l) && self.behind_floor_hit(prim[l], oz[l], f.z) {
+                                if ask.lane(l) && self.behind_floor_hit(prim[l], oz[l], f.z) {
                                     below |= 1 << l;
                                 }
                             }

@@ -161,7 +161,9 @@ const DEFINITE_MARGIN: f64 = 1e-8;
 ///
 /// Definite with a margin: each leading principal minor must exceed [`DEFINITE_MARGIN`]
 /// times the sum of its terms' magnitudes, far above their f64 rounding error (~1e-15
-/// of that sum). A form within rounding of singular (a tilted pair of parallel planes
+/// of that sum, while the sum stays out of the subnormal range; below it the test
+/// degrades to the minors' signs, and a form that slips through gets half-extents so
+/// large that `BOUNDS_LIMIT` clamps them). A form within rounding of singular (a tilted pair of parallel planes
 /// written with decimal coefficients: exact minors 5.2e-3, 1e-19 and −1.4e-33) could
 /// otherwise get the signs of an ellipsoid, and bounds from the inverse of a nearly
 /// singular matrix that the surface leaves: rays outside them never tested it, so it
