@@ -499,7 +499,7 @@ impl PrimSet {
                         let hits = hit.hit_mask();
                         let mut t_max = hits.select(hit.t * f32x8::splat(FLOOR_TIE), hit.t);
                         // lanes whose hit lies wholly behind the floor plane
-                        let mut below = 0;
+                        let mut behind = 0;
                         // lanes from the side opposite some object's (one compare)
                         let fz = f32x8::splat(f.z);
                         let mut ask = Mask8::from_bits(0);
@@ -514,19 +514,19 @@ impl PrimSet {
                             let (prim, oz) = (hit.prim.to_array(), r.origin.z.to_array());
                             for l in 0..8 {
                                 if ask.lane(l) && self.behind_floor_hit(prim[l], oz[l], f.z) {
-                                    below |= 1 << l;
+                                    behind |= 1 << l;
                                 }
                             }
                         }
-                        let below = Mask8::from_bits(below);
-                        if below.any() {
-                            t_max = below.select(f32x8::splat(f32::INFINITY), t_max);
+                        let behind = Mask8::from_bits(behind);
+                        if behind.any() {
+                            t_max = behind.select(f32x8::splat(f32::INFINITY), t_max);
                         }
                         let (m, t) = f.intersect_x8(r, active, t_max);
                         let take = m & t.lt(t_max);
-                        if below.any() {
+                        if behind.any() {
                             // the floor replaces them wherever the ray meets it
-                            hit.t = (take & below).select(f32x8::splat(f32::INFINITY), hit.t);
+                            hit.t = (take & behind).select(f32x8::splat(f32::INFINITY), hit.t);
                         }
                         self.record_x8(hit, take, t, zero, code);
                     }
@@ -610,8 +610,8 @@ impl PrimSet {
                     let Some(f) = &self.floor else { continue };
                     // a hit wholly behind the floor plane: the floor replaces
                     // it wherever the ray meets it
-                    let below = hit.is_hit() && self.behind_floor_hit(hit.prim, r.origin.z, f.z);
-                    let t_max = match (hit.is_hit(), below) {
+                    let behind = hit.is_hit() && self.behind_floor_hit(hit.prim, r.origin.z, f.z);
+                    let t_max = match (hit.is_hit(), behind) {
                         (_, true) => f32::INFINITY,
                         (true, false) => hit.t * FLOOR_TIE,
                         (false, false) => hit.t,
@@ -619,7 +619,7 @@ impl PrimSet {
                     if let Some(t) = f.intersect_1(r, t_max)
                         && t < t_max
                     {
-                        if below {
+                        if behind {
                             *hit = Hit1::new(f32::INFINITY);
                         }
                         self.record_1(hit, t, 0.0, 0.0, code);
