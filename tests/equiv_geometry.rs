@@ -473,6 +473,68 @@ fn floor_matches_per_lane() {
     check_rays("floor", &scene, true, &rays, 14, 0.01);
 }
 
+/// Surfaces within the floor's f32 tie band: a triangle crossing the plane a few 1e-4
+/// below it over most of its area, the plane z = −0.0002 as an unclipped quadric, a
+/// sphere sunk to a 0.001 cap, and a triangle lying on the floor. Rays from above and
+/// below: packet lanes equal single rays bit for bit, and both agree with the
+/// reference (the tie band decided in f64, `PrimSet::floor_first`).
+#[test]
+fn floor_ties_match_per_lane() {
+    let mut rng = Rng(7);
+    let tri = |v: [[f64; 3]; 3]| {
+        object(Shape::Triangle {
+            v: v.map(DVec3::from),
+        })
+    };
+    let scene = scene_of(vec![
+        tri([
+            [-400.0, -400.0, -0.0002],
+            [400.0, -400.0, -0.0002],
+            [0.0, 400.0, 0.0001],
+        ]),
+        object(quadric(
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0002],
+            [0.0; 3],
+            [0.0; 3],
+        )),
+        object(Shape::Sphere {
+            center: DVec3::new(50.0, 50.0, -9.999),
+            radius: 10.0,
+        }),
+        tri([
+            [-100.0, -300.0, 0.0],
+            [100.0, -300.0, 0.0],
+            [0.0, -200.0, 0.0],
+        ]),
+    ]);
+    let mut rays = rays_at(
+        &mut rng,
+        1600,
+        DVec3::new(-300.0, -300.0, 5.0),
+        DVec3::new(300.0, 300.0, 100.0),
+        DVec3::ZERO,
+        300.0,
+    );
+    // aimed at the cap's rim (radius ~0.14 around (50, 50))
+    rays.extend(rays_at(
+        &mut rng,
+        400,
+        DVec3::new(49.0, 49.0, 0.2),
+        DVec3::new(51.0, 51.0, 1.0),
+        DVec3::new(50.0, 50.0, 0.0),
+        0.3,
+    ));
+    rays.extend(rays_at(
+        &mut rng,
+        400,
+        DVec3::new(-100.0, -100.0, -60.0),
+        DVec3::new(100.0, 100.0, -5.0),
+        DVec3::ZERO,
+        200.0,
+    ));
+    check_rays("floor ties", &scene, true, &rays, 16, 0.01);
+}
+
 #[test]
 fn whole_bvh_traversal_matches_with_mixed_packets() {
     let scene = common::generated_scene(600, 21);

@@ -220,8 +220,19 @@ impl Hit1 {
 /// floor won (the picture 47 % too bright, 18.4 dB from the reference; 25.0 dB and
 /// within 1.2 % with 64 ulps, as close as the reference to itself with the eye moved
 /// by 1e-3: `tests/extremes.rs`). The window is not applied to objects wholly behind
-/// the floor plane from the ray's origin ([`PrimSet::floor_side`]).
+/// the floor plane from the ray's origin ([`PrimSet::floor_side`]), and inside it
+/// (the floor between [`FLOOR_TIE`] and [`FLOOR_BAND`] times the object's t) the two
+/// distances are recomputed in f64 to decide ([`PrimSet::floor_first`]).
 pub const FLOOR_TIE: f32 = 1.0 - 64.0 * f32::EPSILON;
+
+/// Top of the floor tie's band, relative to the object's t (64 f32 ulps beyond it):
+/// a floor hit between [`FLOOR_TIE`] and this is too close to the object's in f32 to
+/// order them, and [`PrimSet::floor_first`] decides.
+pub const FLOOR_BAND: f32 = 1.0 + 64.0 * f32::EPSILON;
+
+/// How far (relative) the f64 root may lie from the f32 kernel's t and still be taken
+/// as the same surface crossing by [`PrimSet::floor_first`].
+const SAME_ROOT: f64 = 1e-3;
 
 /// The BVH sees primitive bounds clamped to ±2⁴⁴ (1.8e13) in the f32 frame, so that its
 /// SAH sums and products (areas up to 3·2⁹⁰ times counts up to 2²⁸) stay finite. A
@@ -268,6 +279,11 @@ pub struct PrimSet {
     /// The triangles are of kind [`PrimKind::TriangleMoller`] (plain test), not
     /// [`PrimKind::Triangle`] (watertight).
     pub moller: bool,
+    /// The world point of the frame's origin.
+    pub base: DVec3,
+    /// By object index, the scene's shapes (meshes shared, not copied), for
+    /// [`PrimSet::floor_first`].
+    pub world: Vec<Shape>,
 }
 
 impl PrimSet {
@@ -276,6 +292,8 @@ impl PrimSet {
     pub fn from_scene(scene: &Scene, base: DVec3) -> PrimSet {
         let mut s = PrimSet {
             floor: Some(floor::Floor32::new(base)),
+            base,
+            world: scene.objects.iter().map(|o| o.shape.clone()).collect(),
             ..PrimSet::default()
         };
         // the lowest and highest world z of each object (±∞: unbounded)
@@ -350,6 +368,47 @@ impl PrimSet {
             None
         };
         far.is_some_and(|side| self.floor_side.get(self.object(code) as usize) == Some(&side))
+    }
+
+    /// Whether the floor comes first on a ray (f32 frame, `o` and `d` widened exactly)
+    /// whose nearest hit so far is primitive `code` at `t`, with the floor's f32 t in
+    /// the tie band (within 64 f32 ulps of `t` either way), where f32 cannot order
+    /// them: both distances recomputed in f64 from the same f32 data, and ordered as
+    /// the reference orders them (the floor wins only by more than [`floor::TIE`]).
+    /// The object's root is the one nearest `t` (for a quadric under the clipping
+    /// rule, the kernel may have taken the far one); none within [`SAME_ROOT`] of `t`
+    /// (a root the f32 kernel could not have meant): the object keeps its hit, as
+    /// everywhere in the band before. A surface crossing the floor plane, or
+    /// unbounded, a few ulps behind it (a triangle 1e-4 below over most of its area,
+    /// a sphere sunk to a small cap, the plane z = −0.0002 as a quadric) no longer
+    /// shows through the floor; one lying on it (a prism's base) still wins.
+    #[cold]
+    fn floor_first(&self, code: i32, t: f32, o: DVec3, d: DVec3, floor_z: f32) -> bool {
+        let (kind, i) = split_code(code);
+        let t = t as f64;
+        let nearest = |(a, b): (f64, f64)| if (a - t).abs() <= (b - t).abs() { a } else { b };
+        // spheres and quadrics from their world data (frame rounding of a centre
+        // moved the rim of a sphere sunk to a 0.001 cap by pixels), triangles from
+        // the frame's (which triangle of a mesh a code names is not kept)
+        let world = o + self.base;
+        let (t_obj, t_floor) = match (kind, self.world.get(self.object(code) as usize)) {
+            (PrimKind::Triangle | PrimKind::TriangleMoller, _) => (
+                self.triangles[i].plane_t_f64(o, d),
+                (floor_z as f64 - o.z) / d.z,
+            ),
+            (_, Some(Shape::Sphere { center, radius })) => (
+                sphere::roots_ref(*center, *radius, world, d).map(nearest),
+                -world.z / d.z,
+            ),
+            (_, Some(Shape::Quadric(q))) => {
+                (quadric::roots_ref(q, world, d).map(nearest), -world.z / d.z)
+            }
+            _ => (None, 0.0),
+        };
+        let Some(t_obj) = t_obj.filter(|&u| (u - t).abs() <= SAME_ROOT * t) else {
+            return false;
+        };
+        t_floor < t_obj * floor::TIE
     }
 
     fn push_triangle(&mut self, v: &[DVec3; 3], base: DVec3, id: u32) {
@@ -522,13 +581,35 @@ impl PrimSet {
                         if behind.any() {
                             t_max = behind.select(f32x8::splat(f32::INFINITY), t_max);
                         }
-                        let (m, t) = f.intersect_x8(r, active, t_max);
+                        // the other hit lanes look up to the top of the tie band
+                        let probe = hits
+                            .and_not(behind)
+                            .select(hit.t * f32x8::splat(FLOOR_BAND), t_max);
+                        let (m, t) = f.intersect_x8(r, active, probe);
                         let take = m & t.lt(t_max);
-                        if behind.any() {
-                            // the floor replaces them wherever the ray meets it
-                            hit.t = (take & behind).select(f32x8::splat(f32::INFINITY), hit.t);
+                        // floor hits in the band: ordered in f64 (rare)
+                        let band = (m & hits).and_not(take);
+                        let mut first = 0;
+                        if band.any() {
+                            let (ts, prim) = (hit.t.to_array(), hit.prim.to_array());
+                            let [ox, oy, oz] =
+                                [r.origin.x, r.origin.y, r.origin.z].map(|v| v.to_array());
+                            let [dx, dy, dz] = [r.dir.x, r.dir.y, r.dir.z].map(|v| v.to_array());
+                            for l in 0..8 {
+                                let o = DVec3::new(ox[l] as f64, oy[l] as f64, oz[l] as f64);
+                                let d = DVec3::new(dx[l] as f64, dy[l] as f64, dz[l] as f64);
+                                if band.lane(l) && self.floor_first(prim[l], ts[l], o, d, f.z) {
+                                    first |= 1 << l;
+                                }
+                            }
                         }
-                        self.record_x8(hit, take, t, zero, code);
+                        let first = Mask8::from_bits(first);
+                        // the floor replaces these hits wherever the ray meets it
+                        let replace = (take & behind) | first;
+                        if replace.any() {
+                            hit.t = replace.select(f32x8::splat(f32::INFINITY), hit.t);
+                        }
+                        self.record_x8(hit, take | first, t, zero, code);
                     }
                 }
             }
@@ -611,18 +692,28 @@ impl PrimSet {
                     // a hit wholly behind the floor plane: the floor replaces
                     // it wherever the ray meets it
                     let behind = hit.is_hit() && self.behind_floor_hit(hit.prim, r.origin.z, f.z);
-                    let t_max = match (hit.is_hit(), behind) {
-                        (_, true) => f32::INFINITY,
-                        (true, false) => hit.t * FLOOR_TIE,
-                        (false, false) => hit.t,
+                    let (t_max, probe) = match (hit.is_hit(), behind) {
+                        (_, true) => (f32::INFINITY, f32::INFINITY),
+                        (true, false) => (hit.t * FLOOR_TIE, hit.t * FLOOR_BAND),
+                        (false, false) => (hit.t, hit.t),
                     };
-                    if let Some(t) = f.intersect_1(r, t_max)
-                        && t < t_max
-                    {
-                        if behind {
-                            *hit = Hit1::new(f32::INFINITY);
+                    if let Some(t) = f.intersect_1(r, probe) {
+                        // in the tie band: ordered in f64
+                        let first = t >= t_max
+                            && hit.is_hit()
+                            && self.floor_first(
+                                hit.prim,
+                                hit.t,
+                                r.origin.as_dvec3(),
+                                r.dir.as_dvec3(),
+                                f.z,
+                            );
+                        if t < t_max || first {
+                            if behind || first {
+                                *hit = Hit1::new(f32::INFINITY);
+                            }
+                            self.record_1(hit, t, 0.0, 0.0, code);
                         }
-                        self.record_1(hit, t, 0.0, 0.0, code);
                     }
                 }
             }

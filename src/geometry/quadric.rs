@@ -48,25 +48,30 @@ pub fn solve_quadratic(a: f64, b: f64, c: f64) -> Option<(f64, f64)> {
     Some(if r0 <= r1 { (r0, r1) } else { (r1, r0) })
 }
 
-/// Nearest t with 0 < t < t_max under the box-clipping root rule.
-pub fn intersect_ref(q: &Quadric, ray: &Ray, t_max: f64) -> Option<f64> {
-    // the all-zero quadric is never hit
-    if q.is_degenerate() {
-        return None;
-    }
+/// Both roots (ascending) of F(o + t·d) = a·t² + b·t + c, unclipped (also the fast
+/// path's floor tie arbiter, `PrimSet::floor_first`).
+pub fn roots_ref(q: &Quadric, o: DVec3, d: DVec3) -> Option<(f64, f64)> {
     // coefficients of F along the ray
     let [qa, qb, qc, qd, qe, qf, ..] = q.coef;
-    let d = ray.dir;
     let a = qa * d.x * d.x
         + qb * d.y * d.y
         + qc * d.z * d.z
         + qd * d.x * d.y
         + qe * d.x * d.z
         + qf * d.y * d.z;
-    let b = q.gradient(ray.origin).dot(d);
-    let c = q.value(ray.origin);
+    let b = q.gradient(o).dot(d);
+    let c = q.value(o);
+    solve_quadratic(a, b, c)
+}
+
+/// Nearest t with 0 < t < t_max under the box-clipping root rule.
+pub fn intersect_ref(q: &Quadric, ray: &Ray, t_max: f64) -> Option<f64> {
+    // the all-zero quadric is never hit
+    if q.is_degenerate() {
+        return None;
+    }
     // solve for both roots
-    let (t0, t1) = solve_quadratic(a, b, c)?;
+    let (t0, t1) = roots_ref(q, ray.origin, ray.dir)?;
     // nearer positive root in the box, else the farther one
     [t0, t1]
         .into_iter()

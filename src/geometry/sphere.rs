@@ -44,6 +44,26 @@ pub fn intersect_ref(center: DVec3, radius: f64, ray: &Ray, t_max: f64) -> Optio
     [t0, t1].into_iter().find(|&t| t > 0.0 && t < t_max)
 }
 
+/// Both roots (ascending) of the sphere along o + t·d, d of any length: a·t² + 2b·t + c
+/// with Δ/4 = a·r² − |f × d|² (no cancellation for spheres far from the origin). The
+/// floor tie's arbiter on the fast path (`PrimSet::floor_first`).
+pub fn roots_ref(center: DVec3, radius: f64, o: DVec3, d: DVec3) -> Option<(f64, f64)> {
+    let f = o - center;
+    let a = d.length_squared();
+    let b = f.dot(d);
+    let disc = a * radius * radius - f.cross(d).length_squared();
+    if disc.is_nan() || disc < 0.0 || a == 0.0 {
+        return None;
+    }
+    let q = -(b + disc.sqrt().copysign(b));
+    if q == 0.0 {
+        return None;
+    }
+    let fl = f.length();
+    let (r0, r1) = (q / a, (fl - radius) * (fl + radius) / q);
+    Some(if r0 <= r1 { (r0, r1) } else { (r1, r0) })
+}
+
 /// Surface at distance t: the hit point re-projected onto the sphere.
 pub fn surface_ref(center: DVec3, radius: f64, ray: &Ray, t: f64) -> SurfacePoint {
     let v = ray.at(t) - center;

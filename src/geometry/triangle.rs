@@ -141,6 +141,15 @@ impl Triangle32 {
         )
     }
 
+    /// Where a ray of the f32 frame meets the triangle's plane, in f64 (no edge test):
+    /// the floor tie's arbiter ([`crate::geometry::PrimSet`]'s floor test).
+    pub fn plane_t_f64(&self, o: DVec3, d: DVec3) -> Option<f64> {
+        let v = self.v.map(|p| p.as_dvec3());
+        let n = (v[1] - v[0]).cross(v[2] - v[0]);
+        let t = n.dot(v[0] - o) / n.dot(d);
+        t.is_finite().then_some(t)
+    }
+
     /// Nearest hit with 0 < t <= t_max (inclusive: the caller breaks exact ties):
     /// (t, b1, b2), the barycentrics of the second and third vertex.
     #[inline]
