@@ -7,12 +7,29 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
-use octaray::output::{write_image, write_next_output};
+use octaray::output::{check_output, write_image, write_next_output};
 use octaray::render::RenderSettings;
 use octaray::render::profile::Profile;
 use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
 use octaray::scene::{Camera, Scene};
 use octaray::viewer;
+
+/// A line to stderr; a closed or full stderr is no reason to fail (`eprintln!`
+/// panics on it, exit 101).
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
+/// A line to stdout: as [`say`] (a closed pipe, `| head -c0`, or /dev/full).
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -67,7 +84,7 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
     let profiles = args
         .profiles
         .iter()
-        .map(|p| load_profile(p))
+        .map(|p| load_profile("--profiles", p))
         .collect::<Result<Vec<_>, _>>()?;
     let scenes = if args.scenes.is_empty() {
         octaray::tradeoff::default_scenes(Path::new("scenes"))
@@ -88,15 +105,14 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
             .collect::<Vec<_>>()
             .join(" "),
     };
-    let md =
-        octaray::tradeoff::run(&opts, &mut |line| eprintln!("{line}")).map_err(|e| match e {
-            octaray::tradeoff::TradeoffError::Input(m) => Failure::input(m),
-            e => Failure {
-                code: 1,
-                message: e.to_string(),
-            },
-        })?;
-    println!("{md}");
+    let md = octaray::tradeoff::run(&opts, &mut |line| say!("{line}")).map_err(|e| match e {
+        octaray::tradeoff::TradeoffError::Input(m) => Failure::input(m),
+        e => Failure {
+            code: 1,
+            message: e.to_string(),
+        },
+    })?;
+    out!("{md}");
     Ok(())
 }
 
@@ -230,14 +246,15 @@ fn load(path: Option<&Path>) -> Result<(Parsed, String), Failure> {
     };
     let parsed = parsed.map_err(|e| Failure::input(e.to_string()))?;
     for w in &parsed.warnings {
-        eprintln!("{w}");
+        say!("{w}");
     }
     Ok((parsed, name))
 }
 
-/// `--profile NAME|PATH`; errors (file:line:column, key) exit with code 2.
-fn load_profile(spec: &str) -> Result<Profile, Failure> {
-    Profile::load(spec).map_err(|e| Failure::input(format!("--profile: {e}")))
+/// `--profile NAME|PATH` (or another `option`); errors (file:line:column, key) exit
+/// with code 2.
+fn load_profile(option: &str, spec: &str) -> Result<Profile, Failure> {
+    Profile::load(spec).map_err(|e| Failure::input(format!("{option}: {e}")))
 }
 
 fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
@@ -249,7 +266,14 @@ fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
         None => Camera::from_look(eye, default.look, up, args.fov),
     };
     camera.ok_or_else(|| {
-        Failure::input("camera: the view direction is zero or parallel to the up vector")
+        let look = args.look_at.map_or(default.look, |t| t - eye);
+        Failure::input(if !look.is_finite() {
+            "--eye/--look-at: the view direction overflows (the points are too far apart)"
+        } else if look == DVec3::ZERO {
+            "--eye/--look-at: the view direction is zero (the eye is the point looked at)"
+        } else {
+            "--up: parallel to the view direction (or zero)"
+        })
     })
 }
 
@@ -273,6 +297,10 @@ fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
 }
 
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
+    // where the image goes, before the render's time is spent
+    if let Some(path) = &args.output {
+        check_output(path, true).map_err(|e| Failure::input(format!("--output: {e}")))?;
+    }
     let (parsed, name) = load(args.scene.as_deref())?;
     if let (None, Some(e)) = (args.size, &parsed.too_large) {
         return Err(Failure::input(e.to_string()));
@@ -289,7 +317,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
-    let profile = load_profile(&args.profile)?;
+    let profile = load_profile("--profile", &args.profile)?;
     let rendered = profile.render(&scene, &settings);
     let written = match &args.output {
         Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
@@ -301,7 +329,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     })?;
     let s = &rendered.stats;
     let secs = s.elapsed.as_secs_f64();
-    eprintln!(
+    say!(
         "{name}: {}x{}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
         size.width,
         size.height,
@@ -331,10 +359,10 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         Some(name) => name,
         None => viewer::default_profile_name(),
     };
-    let profile = load_profile(profile_name)?;
+    let profile = load_profile("--profile", profile_name)?;
     if let Some(frames) = args.frames {
         let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames);
-        println!("{name}: {report}");
+        out!("{name}: {report}");
         return Ok(());
     }
     if !args.out_dir.is_dir() {
@@ -352,7 +380,7 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         scene: std::sync::Arc::new(parsed.scene),
         scene_name: name,
         capture_profile: profile.clone(),
-        moving_profile: load_profile(&args.preview_profile)?,
+        moving_profile: load_profile("--preview-profile", &args.preview_profile)?,
         profile,
         size: args.size,
         out_dir: args.out_dir.clone(),
@@ -364,9 +392,33 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
     })
 }
 
+/// Sizes rayon's global pool (so that `--threads` bounds every parallel part: the
+/// frame, the photon pass, the image encoder) and makes an interrupted run remove its
+/// temporary files. A pool that cannot start (a process limit) is an error, not a
+/// panic in the first parallel loop.
+fn start(threads: Option<u32>) -> Result<(), Failure> {
+    // (a second handler cannot be set; one is enough)
+    let _ = ctrlc::set_handler(|| {
+        octaray::output::remove_temporaries();
+        std::process::exit(130);
+    });
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.map_or(0, |t| t as usize))
+        .build_global()
+        .map_err(|e| Failure {
+            code: 1,
+            message: format!("cannot start the worker threads: {e}"),
+        })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    let threads = match &cli.command {
+        Some(Command::Render(a)) => a.threads,
+        Some(Command::BenchTrace(a)) => Some(a.threads),
+        _ => None,
+    };
+    let result = start(threads).and_then(|()| match cli.command {
         Some(Command::Render(args)) => run_render(&args),
         Some(Command::BenchTrace(args)) => run_bench_trace(&args),
         Some(Command::View(args)) => run_view(&args),
@@ -376,11 +428,11 @@ fn main() -> ExitCode {
             profile: Profile::default_name().into(),
             ..RenderArgs::default()
         }),
-    };
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
-            eprintln!("octaray: {}", f.message);
+            say!("octaray: {}", f.message);
             ExitCode::from(f.code)
         }
     }

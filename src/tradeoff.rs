@@ -67,8 +67,8 @@ pub struct FeatureRow {
 pub enum TradeoffError {
     #[error("{0}")]
     Input(String),
-    #[error("{path}: {error}")]
-    Write { path: String, error: std::io::Error },
+    #[error("{0}")]
+    Output(#[from] crate::output::OutputError),
 }
 
 /// The scene files of `scenes/` (sorted), the default set.
@@ -394,6 +394,16 @@ pub struct Options {
 }
 
 pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<String, TradeoffError> {
+    // the outputs' names and places, before minutes of measurements
+    for (path, image, option) in [
+        (&opts.markdown, false, "--markdown"),
+        (&opts.plot, true, "--plot"),
+    ] {
+        if let Some(p) = path {
+            crate::output::check_output(p, image)
+                .map_err(|e| TradeoffError::Input(format!("{option}: {e}")))?;
+        }
+    }
     let mut line = |r: &Row| {
         log(&format!(
             "{:<24} {:>4} {:<10} {:>9.1} ms {:>7.2} Mrays/s {:>6.1}x  PSNR {:>6}  max {:>3}  >8/255 {:>6}%  >1/255 unmasked {:>6}%",
@@ -455,21 +465,20 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<String, Tradeoff
         None => Vec::new(),
     };
     let md = markdown(&rows, &headline, &costs, &scene_features, &opts.command);
+    // whole or not at all, as images (an existing file stays as it was on failure)
     if let Some(path) = &opts.markdown {
-        std::fs::write(path, &md).map_err(|error| TradeoffError::Write {
-            path: path.display().to_string(),
-            error,
-        })?;
+        crate::output::write_atomic(path, md.as_bytes())?;
     }
     if let Some(path) = &opts.plot {
         let mut all = headline.clone();
         all.extend(rows.iter().cloned());
-        plot::draw(&all)
-            .save(path)
-            .map_err(|e| TradeoffError::Write {
-                path: path.display().to_string(),
-                error: std::io::Error::other(e),
-            })?;
+        let img = plot::draw(&all);
+        let fb = crate::output::Framebuffer {
+            width: img.width(),
+            height: img.height(),
+            pixels: img.pixels().map(|p| p.0).collect(),
+        };
+        crate::output::write_image(&fb, path)?;
     }
     Ok(md)
 }

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes};
+use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes, parse_scene_file};
 use octaray::scene::{Scene, Shape};
 
 /// A small valid scene; tests corrupt one token of it at a time.
@@ -501,4 +501,81 @@ fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.txt"));
+}
+
+/// Inputs that are not regular files are refused before they are opened (a FIFO
+/// blocked the open forever, /dev/zero filled gigabytes: found by fuzzing), and a bad
+/// output is refused before the render, with exit code 2 and the option named.
+#[cfg(unix)]
+#[test]
+fn special_files_and_bad_outputs_are_refused_up_front() {
+    let dir = std::env::temp_dir().join(format!("octaray-special-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_octaray"))
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for args in [
+        &["render", "/dev/zero", "--size", "8"][..],
+        &[
+            "render",
+            "--profile",
+            "/dev/zero",
+            "--size",
+            "8",
+            "-o",
+            "x.bmp",
+        ],
+        &["render", ".", "--size", "8"],
+        &["render", "--size", "8", "-o", "x.jpg"],
+        &["render", "--size", "8", "-o", "no/such/dir/x.bmp"],
+        &["render", "--size", "8", "-o", "."],
+    ] {
+        let out = run(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    assert!(
+        String::from_utf8_lossy(&run(&["render", "--size", "8", "-o", "x.jpg"]).stderr)
+            .contains("--output: x.jpg: unsupported image extension")
+    );
+    // nothing written, no temporary file left
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+}
+
+/// An OBJ file may start with a byte-order mark (it once swallowed the first `v`
+/// line, shifting every index) and carry non-UTF-8 bytes in comments; a mesh with no
+/// faces loads with a warning.
+#[test]
+fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
+    use octaray::scene::obj::load_obj;
+    let dir = std::env::temp_dir().join(format!("octaray-objbom-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let bom = dir.join("bom.obj");
+    std::fs::write(&bom, [&b"\xef\xbb\xbf"[..], body].concat()).unwrap();
+    let m = load_obj(&bom).unwrap();
+    assert_eq!((m.vertices.len(), m.triangles.len()), (3, 1));
+    assert_eq!(m.vertices[0], glam::DVec3::ZERO);
+    let stray = dir.join("stray.obj");
+    std::fs::write(&stray, [&b"# caf\xe9 \xb0C\n"[..], body].concat()).unwrap();
+    assert_eq!(load_obj(&stray).unwrap().triangles.len(), 1);
+    std::fs::write(dir.join("empty.obj"), b"v 0 0 0\n").unwrap();
+    let scene = dir.join("s.txt");
+    std::fs::write(
+        &scene,
+        "1 8 1 mesh empty.obj  1 0 0  0.4 0.5 0 0  1  0  0\n",
+    )
+    .unwrap();
+    let parsed = parse_scene_file(&scene).unwrap();
+    assert!(
+        parsed.warnings.iter().any(|w| w.contains("no triangles")),
+        "{:?}",
+        parsed.warnings
+    );
 }

@@ -290,15 +290,11 @@ pub fn run(
     log: &mut (dyn std::io::Write + Send),
 ) -> Result<Vec<TraceRun>, ObjError> {
     let tris = load_mesh(mesh)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("a thread pool");
     let name = mesh.file_name().map_or_else(
         || mesh.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    pool.install(|| {
+    crate::render::frame::with_threads(Some(threads), || {
         let (bvh, build_ms) = timed_build(&tris);
         let _ = writeln!(
             log,
@@ -374,7 +370,8 @@ pub fn run(
                     run.boxes_per_ray,
                     match mode {
                         Mode::Single => "wide node tests (8 boxes each)",
-                        Mode::Packet8 => "node tests (8-wide: per packet when the signs agree, per lane when not)",
+                        Mode::Packet8 =>
+                            "node tests (8-wide: per packet when the signs agree, per lane when not)",
                         _ => "box tests",
                     },
                     run.prims_per_ray

@@ -6,6 +6,8 @@
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use image::ImageFormat;
 
@@ -39,66 +41,120 @@ fn format_for(path: &Path) -> Result<ImageFormat, OutputError> {
     }
 }
 
-/// Encodes `fb` to a temporary file beside `path`; returns the temporary path.
-fn write_temp(fb: &Framebuffer, path: &Path) -> Result<PathBuf, OutputError> {
-    let format = format_for(path)?;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
-    let name = path
-        .file_name()
-        .map_or_else(|| "image".into(), |n| n.to_string_lossy().into_owned());
-    let tmp_name = format!(".{name}.tmp-{}", std::process::id());
-    let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
-    if format == ImageFormat::Bmp {
-        return match fs::write(&tmp, super::bmp::encode(fb)) {
-            Ok(()) => Ok(tmp),
-            Err(source) => {
-                let _ = fs::remove_file(&tmp);
-                Err(OutputError::Io {
-                    path: path.display().to_string(),
-                    source,
-                })
-            }
-        };
+/// What can be known about writing `path` before any work: an image extension
+/// (with `image`), not a directory, in an existing directory. Checked before a
+/// render, so that a typo costs no render time.
+pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
+    if image {
+        format_for(path)?;
     }
-    let result = image::save_buffer_with_format(
-        &tmp,
+    let io = |message: &str| OutputError::Io {
+        path: path.display().to_string(),
+        source: io::Error::new(io::ErrorKind::InvalidInput, message),
+    };
+    if path.is_dir() {
+        return Err(io("is a directory"));
+    }
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
+    if dir.is_some_and(|d| !d.is_dir()) {
+        return Err(io("no such directory"));
+    }
+    Ok(())
+}
+
+/// Temporary files being written, removed by [`remove_temporaries`] should the
+/// process be interrupted (a signal handler calls it).
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes the temporary files still being written (an interrupted run leaves none).
+pub fn remove_temporaries() {
+    if let Ok(list) = TEMPORARIES.lock() {
+        for p in list.iter() {
+            let _ = fs::remove_file(p);
+        }
+    }
+}
+
+/// Writes `bytes` to a fresh temporary file beside `path` and returns its path. Short
+/// name (a long target name plus a suffix would pass the 255-byte limit), unique per
+/// process and call.
+fn write_temp_bytes(path: &Path, bytes: &[u8]) -> Result<PathBuf, OutputError> {
+    static COUNT: AtomicU32 = AtomicU32::new(0);
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
+    let n = COUNT.fetch_add(1, Ordering::Relaxed);
+    let tmp_name = format!(".octaray-{}-{n}.tmp", std::process::id());
+    let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
+    if let Ok(mut list) = TEMPORARIES.lock() {
+        list.push(tmp.clone());
+    }
+    match fs::write(&tmp, bytes) {
+        Ok(()) => Ok(tmp),
+        Err(source) => {
+            forget_temp(&tmp);
+            Err(OutputError::Io {
+                path: path.display().to_string(),
+                source,
+            })
+        }
+    }
+}
+
+/// Removes a temporary file (if still there) and forgets it.
+fn forget_temp(tmp: &Path) {
+    let _ = fs::remove_file(tmp);
+    if let Ok(mut list) = TEMPORARIES.lock() {
+        list.retain(|p| p != tmp);
+    }
+}
+
+/// The encoded image, BMP or PNG by the extension of `path`.
+fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
+    if format_for(path)? == ImageFormat::Bmp {
+        return Ok(super::bmp::encode(fb));
+    }
+    let mut out = std::io::Cursor::new(Vec::new());
+    image::write_buffer_with_format(
+        &mut out,
         fb.as_bytes(),
         fb.width,
         fb.height,
         image::ExtendedColorType::Rgb8,
-        format,
-    );
-    if let Err(source) = result {
-        let _ = fs::remove_file(&tmp);
-        return Err(OutputError::Encode {
-            path: path.display().to_string(),
-            source,
-        });
-    }
-    Ok(tmp)
+        ImageFormat::Png,
+    )
+    .map_err(|source| OutputError::Encode {
+        path: path.display().to_string(),
+        source,
+    })?;
+    Ok(out.into_inner())
+}
+
+/// Writes `bytes` to `path` whole or not at all: a temporary file beside it, then a
+/// rename over it (an existing file is replaced atomically, or left as it was).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let tmp = write_temp_bytes(path, bytes)?;
+    let renamed = fs::rename(&tmp, path);
+    forget_temp(&tmp);
+    renamed.map_err(|source| OutputError::Io {
+        path: path.display().to_string(),
+        source,
+    })
 }
 
 /// Writes `fb` to `path` (BMP or PNG by extension), replacing any existing file
 /// atomically.
 pub fn write_image(fb: &Framebuffer, path: &Path) -> Result<(), OutputError> {
-    let tmp = write_temp(fb, path)?;
-    fs::rename(&tmp, path).map_err(|source| {
-        let _ = fs::remove_file(&tmp);
-        OutputError::Io {
-            path: path.display().to_string(),
-            source,
-        }
-    })
+    write_atomic(path, &encode(fb, path)?)
 }
 
-/// Writes `fb` to `path` only if no file of that name exists; `Ok(false)` if one does.
+/// Writes `fb` to `path` only if no file of that name exists; `Ok(false)` if one does
+/// (or any directory entry: a dangling symbolic link counts as taken).
 pub fn write_image_no_clobber(fb: &Framebuffer, path: &Path) -> Result<bool, OutputError> {
-    if path.exists() {
+    if fs::symlink_metadata(path).is_ok() {
         return Ok(false);
     }
-    let tmp = write_temp(fb, path)?;
+    let tmp = write_temp_bytes(path, &encode(fb, path)?)?;
     let linked = fs::hard_link(&tmp, path);
-    let _ = fs::remove_file(&tmp);
+    forget_temp(&tmp);
     match linked {
         Ok(()) => Ok(true),
         Err(e) if e.kind() == io::ErrorKind::AlreadyExists => Ok(false),
@@ -115,21 +171,28 @@ pub fn output_name(n: u32) -> String {
     format!("Output_1{n}.bmp")
 }
 
-/// The first `Output_1N.bmp` in `dir` that does not exist yet.
+/// The first `Output_1N.bmp` in `dir` with no directory entry yet.
 pub fn next_free_output(dir: &Path) -> PathBuf {
-    (1..)
-        .map(|n| dir.join(output_name(n)))
-        .find(|p| !p.exists())
+    next_free_from(dir, 1).1
+}
+
+fn next_free_from(dir: &Path, first: u32) -> (u32, PathBuf) {
+    (first..)
+        .map(|n| (n, dir.join(output_name(n))))
+        .find(|(_, p)| fs::symlink_metadata(p).is_err())
         .expect("some name is free")
 }
 
-/// Writes `fb` under the next free `Output_1N.bmp` in `dir`, never overwriting.
+/// Writes `fb` under the next free `Output_1N.bmp` in `dir`, never overwriting: a name
+/// taken meanwhile (by another process) is skipped, not retried.
 pub fn write_next_output(fb: &Framebuffer, dir: &Path) -> Result<PathBuf, OutputError> {
+    let mut first = 1;
     loop {
-        let path = next_free_output(dir);
+        let (n, path) = next_free_from(dir, first);
         if write_image_no_clobber(fb, &path)? {
             return Ok(path);
         }
+        first = n + 1;
     }
 }
 
@@ -179,6 +242,41 @@ mod tests {
             })
             .count();
         assert_eq!(leftovers, 0);
+    }
+
+    /// A dangling symbolic link named Output_11.bmp is a taken name: skipped, not
+    /// written through, not retried forever (the loop found by fuzzing).
+    #[cfg(unix)]
+    #[test]
+    fn dangling_links_take_their_names() {
+        let dir = tempfile_dir("links");
+        std::os::unix::fs::symlink(dir.join("nowhere"), dir.join("Output_11.bmp")).unwrap();
+        let p = write_next_output(&tiny(), &dir).unwrap();
+        assert_eq!(p.file_name().unwrap(), "Output_12.bmp");
+        assert!(!dir.join("nowhere").exists());
+    }
+
+    /// A name of 250 bytes (legal) is written: the temporary name stays short.
+    #[test]
+    fn long_names_are_written() {
+        let dir = tempfile_dir("long");
+        let p = dir.join(format!("{}.bmp", "n".repeat(246)));
+        write_image(&tiny(), &p).unwrap();
+        assert_eq!(Framebuffer::load(&p).unwrap(), tiny());
+    }
+
+    #[test]
+    fn outputs_are_checked_before_any_work() {
+        let dir = tempfile_dir("check");
+        assert!(check_output(&dir.join("a.bmp"), true).is_ok());
+        assert!(check_output(&dir.join("a.md"), false).is_ok());
+        assert!(matches!(
+            check_output(&dir.join("a.jpg"), true),
+            Err(OutputError::Extension { .. })
+        ));
+        assert!(check_output(&dir.join("missing/a.bmp"), true).is_err());
+        fs::create_dir_all(dir.join("d.bmp")).unwrap();
+        assert!(check_output(&dir.join("d.bmp"), true).is_err());
     }
 
     fn tempfile_dir(tag: &str) -> PathBuf {

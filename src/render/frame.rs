@@ -43,16 +43,25 @@ where
                 bar.inc((band_pixels.len() / settings.width as usize) as u64);
             });
     };
-    match settings.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .expect("a thread pool")
-            .install(|| work(&mut image.pixels)),
-        None => work(&mut image.pixels),
-    }
+    with_threads(settings.threads, || work(&mut image.pixels));
     bar.finish_and_clear();
     let mut stats = total.into_inner().expect("no panics while holding");
     stats.elapsed = start.elapsed();
     Rendered { image, stats }
+}
+
+/// Runs `f` on `threads` worker threads: rayon's current pool when it has that many
+/// (the command line sizes the global pool by `--threads`) or none is asked for, else
+/// a pool of its own. Should that pool fail to start (a process limit), `f` runs on
+/// the current pool: the same result, other threads.
+pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> R {
+    match threads {
+        Some(n) if n != rayon::current_num_threads() => {
+            match rayon::ThreadPoolBuilder::new().num_threads(n).build() {
+                Ok(pool) => pool.install(f),
+                Err(_) => f(),
+            }
+        }
+        _ => f(),
+    }
 }

@@ -228,9 +228,19 @@ impl Profile {
 
     /// Loads a profile file; its name is the file stem.
     pub fn from_file(path: &Path) -> Result<Profile, ProfileError> {
-        let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Io {
+        let io = |error| ProfileError::Io {
             path: path.display().to_string(),
             error,
+        };
+        let bytes = crate::scene::read_input(path).map_err(io)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let at = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("line {line}: not UTF-8 text (byte {at})"),
+            ))
         })?;
         let name = path
             .file_stem()

@@ -10,6 +10,22 @@ pub mod parse;
 
 use glam::DVec3;
 
+/// Reads a whole input file (scene, mesh, profile). Only regular files: a FIFO would
+/// block the open forever and a device such as /dev/zero never ends (found by fuzzing:
+/// gigabytes within seconds), so both are refused before they are opened.
+pub fn read_input(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file"
+        };
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, what));
+    }
+    std::fs::read(path)
+}
+
 pub use camera::Camera;
 pub use parse::{ParseError, parse_scene, parse_scene_file};
 

@@ -59,12 +59,18 @@ impl std::error::Error for ObjError {}
 /// Reads and parses an OBJ file.
 pub fn load_obj(path: &Path) -> Result<Mesh, ObjError> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ObjError {
+    let bytes = super::read_input(path).map_err(|e| ObjError {
         file: name.clone(),
         line: 0,
         message: format!("cannot read: {e}"),
     })?;
-    parse_obj(&text, &name)
+    // invalid UTF-8 (a cp1252 byte) is harmless in a comment or a line the format
+    // ignores; the lines that are read are ASCII, so a lossy decoding changes nothing
+    // they say, and a bad byte inside one makes it fail with its line
+    let text = String::from_utf8_lossy(&bytes);
+    // a byte-order mark would glue itself to the first keyword (and drop a `v` line,
+    // shifting every index after it)
+    parse_obj(text.strip_prefix('\u{feff}').unwrap_or(&text), &name)
 }
 
 /// Parses OBJ text; `file` is only used in messages.
@@ -90,7 +96,12 @@ pub fn parse_obj(text: &str, file: &str) -> Result<Mesh, ObjError> {
                         .parse::<f64>()
                         .ok()
                         .filter(|v| v.is_finite())
-                        .ok_or_else(|| err(format!("v: '{tok}' is not a finite number")))?;
+                        .ok_or_else(|| {
+                            err(format!(
+                                "v: '{}' is not a finite number",
+                                tok.escape_debug()
+                            ))
+                        })?;
                 }
                 vertices.push(DVec3::from(c));
             }
@@ -98,9 +109,9 @@ pub fn parse_obj(text: &str, file: &str) -> Result<Mesh, ObjError> {
                 face.clear();
                 for tok in it {
                     let idx = tok.split('/').next().unwrap_or("");
-                    let i: i64 = idx
-                        .parse()
-                        .map_err(|_| err(format!("f: '{tok}' is not a vertex index")))?;
+                    let i: i64 = idx.parse().map_err(|_| {
+                        err(format!("f: '{}' is not a vertex index", tok.escape_debug()))
+                    })?;
                     let nv = vertices.len() as i64;
                     let abs = if i > 0 { i - 1 } else { nv + i };
                     if i == 0 || abs < 0 || abs >= nv {

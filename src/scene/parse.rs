@@ -60,7 +60,7 @@ pub struct Parsed {
 /// Reads and parses a scene file.
 pub fn parse_scene_file(path: &Path) -> Result<Parsed, ParseError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| ParseError {
+    let bytes = super::read_input(path).map_err(|e| ParseError {
         file: name.clone(),
         line: 0,
         col: 0,
@@ -524,7 +524,13 @@ impl<'a> Reader<'a> {
                 let degenerate = (0..mesh.triangles.len())
                     .filter(|&k| is_degenerate_triangle(&mesh.triangle(k)))
                     .count();
-                if degenerate > 0 {
+                if mesh.triangles.is_empty() {
+                    // (lower-case `v` and `f` lines only; anything else is ignored)
+                    self.warn_at(
+                        at,
+                        format!("warning: {who} has no triangles (no `f` lines); it is empty"),
+                    );
+                } else if degenerate > 0 {
                     self.warn_at(
                         at,
                         format!(

@@ -38,6 +38,7 @@ pub mod flycam;
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::fmt;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::str::FromStr;
@@ -362,15 +363,18 @@ fn spawn_capture_worker(
                     result,
                     elapsed: start.elapsed(),
                 };
-                match &done.result {
-                    Ok(path) => eprintln!(
+                // (a closed stderr is no reason to fail: written, not `eprintln!`)
+                let mut err = std::io::stderr();
+                let _ = match &done.result {
+                    Ok(path) => writeln!(
+                        err,
                         "octaray: captured {} ({:.2} s), eye {}",
                         path.display(),
                         done.elapsed.as_secs_f64(),
                         fmt_vec(camera.eye)
                     ),
-                    Err(e) => eprintln!("octaray: capture failed: {e}"),
-                }
+                    Err(e) => writeln!(err, "octaray: capture failed: {e}"),
+                };
                 // The window may be gone already; the capture is on disk either way.
                 let _ = done_tx.send(done);
             }
@@ -592,7 +596,10 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
     drop(job_tx);
     drop(capture_tx);
     if captures_pending > 0 {
-        eprintln!("octaray: finishing {captures_pending} capture(s)...");
+        let _ = writeln!(
+            std::io::stderr(),
+            "octaray: finishing {captures_pending} capture(s)..."
+        );
     }
     // A panic in a worker has been printed already; the captures before it are on disk.
     let _ = capture_thread.join();
