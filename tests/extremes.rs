@@ -841,6 +841,59 @@ fn objects_just_below_the_floor_stay_hidden() {
     }
 }
 
+/// Cameras with integer, axis-aligned geometry put whole rows of pixel rays exactly on
+/// tile lines (x or y a multiple of 20; proved in 60-digit arithmetic by the
+/// independent checker): straight down at fov 90, a centre row on y = 0, the default
+/// eye looking at the origin. Such a point lies in the tile above the line (the spec's
+/// floor); a coordinate within its error bound of a line is taken as on it. Before,
+/// the f32 paths picked the tile by the rounding of the hit point: 112 of 2500, 32 of
+/// 1089 and 36 of 4096 pixels on the wrong tile, the reference 1 (all checked against
+/// the exact parities). Pass: every profile equal to the reference, and the reference
+/// symmetric where the view is: the column at x = 0 (tile line) in the tile of x > 0.
+#[test]
+fn pixels_exactly_on_tile_lines_take_the_tile_above() {
+    let s = scene("1 8 0  1  0 0 100  1 1 1  0");
+    let cams = [
+        (
+            50,
+            Camera::look_at(DVec3::new(0.0, 0.0, 200.0), DVec3::ZERO, DVec3::Y, 90.0),
+        ),
+        (
+            33,
+            Camera::look_at(DVec3::new(0.0, -200.0, 100.0), DVec3::ZERO, DVec3::Z, 80.0),
+        ),
+        (64, Some(aimed(Camera::default().eye, DVec3::ZERO))),
+    ];
+    for (size, cam) in cams {
+        let cam = cam.unwrap();
+        let reference = render("reference", &s, cam, size);
+        for p in PROFILES {
+            let img = render(p, &s, cam, size);
+            let off = pixels_off(&reference.pixels, &img.pixels, 8);
+            assert_eq!(
+                off, 0,
+                "[{p}] {size} px, eye {:?}: {off} pixels off",
+                cam.eye
+            );
+        }
+    }
+    // straight down, 33 px: the centre column looks along x = 0 exactly, which
+    // belongs to the tile of 0 <= x < 20: black (colour 0) where its right neighbour
+    // (x = 7) is, lit white where it is
+    let cam = Camera::look_at(DVec3::new(0.0, 0.0, 200.0), DVec3::ZERO, DVec3::Y, 60.0).unwrap();
+    for p in PROFILES {
+        let img = render(p, &s, cam, 33);
+        let black = |x: usize, y: usize| img.pixels[y * 33 + x] == [0, 0, 0];
+        for y in 0..33 {
+            assert_eq!(
+                black(16, y),
+                black(17, y),
+                "[{p}] row {y}: x = 0 not in the tile above"
+            );
+        }
+    }
+}
+
 /// The pass criterion of [`objects_just_below_the_floor_stay_hidden`].
 fn no_red_behind_the_floor(name: &str, s: &Scene, cam: Camera) {
     let red = |img: &Framebuffer| {

@@ -19,6 +19,12 @@ use crate::scene::Floor;
 /// `geometry::FLOOR_TIE`, the f32 twin).
 pub const TIE: f64 = 1.0 - 64.0 * f64::EPSILON;
 
+/// How many times its error bound (`err` of the surface) a floor point may lie from a
+/// tile line and still be taken as on it ([`crate::scene::Floor::color_at_within`]):
+/// the bound covers the hit's own arithmetic, not the rounding of the ray itself (the
+/// camera's pixel direction: a few ulps more, relative).
+pub const TILE_SNAP: f64 = 4.0;
+
 /// Nearest t with 0 < t < t_max where the ray meets the finite floor.
 pub fn intersect_ref(ray: &Ray, t_max: f64) -> Option<f64> {
     // rays parallel to the plane never hit it (this also keeps 0/0 out)

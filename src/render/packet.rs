@@ -32,7 +32,7 @@ use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
-use crate::geometry::floor::Floor32;
+use crate::geometry::floor::{Floor32, TILE_SNAP};
 use crate::geometry::{PrimKind, PrimSet, Surface8, prim_code, split_code};
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
@@ -458,7 +458,7 @@ impl PacketRenderer {
         let up = r.dir.z.gt(zero);
         let point = Vec3x8::new(p.x, p.y, f32x8::splat(floor.z));
         let normal = Vec3x8::new(zero, zero, up.select(-one, one));
-        let white = checker_white(p.x, p.y, self.base);
+        let white = checker_white(p.x, p.y, e.x, e.y, self.base);
         let c = white.select(one, zero);
         let m = &self.floor;
         let g = Gathered {
@@ -556,7 +556,8 @@ impl PacketRenderer {
                 color[i] = if on_floor {
                     // (floor lanes never take the SIMD surface: point[i] is set)
                     let w = point[i].as_dvec3() + self.base;
-                    Floor::color_at(w.x, w.y).as_vec3()
+                    let e = err[i].as_dvec3() * TILE_SNAP;
+                    Floor::color_at_within(w.x, w.y, e.x, e.y).as_vec3()
                 } else {
                     m.color
                 };
@@ -931,19 +932,24 @@ fn pow_whole(x: f32x8, e: f32x8, bits: u32) -> f32x8 {
 }
 
 /// Lanes at (x, y) (frame coordinates, `base` the frame's origin) on a white tile:
-/// [`Floor::color_at`] on four lanes at a time, in f64: the same tile indices, whose
-/// parity is taken exactly while they are below 2^53 (every point of the floor).
-fn checker_white(x: f32x8, y: f32x8, base: DVec3) -> Mask8 {
-    let (x, y) = (x.to_array(), y.to_array());
-    let tile = |v: [f32; 4], b: f64| {
+/// [`Floor::color_at_within`] (errors `ex`, `ey` times [`TILE_SNAP`]) on four lanes at
+/// a time, in f64: the same tile indices, whose parity is taken exactly while they are
+/// below 2^53 (every point of the floor).
+fn checker_white(x: f32x8, y: f32x8, ex: f32x8, ey: f32x8, base: DVec3) -> Mask8 {
+    let [x, y, ex, ey] = [x, y, ex, ey].map(|v| v.to_array());
+    let tile = |v: [f32; 4], e: [f32; 4], b: f64| {
         let w = f64x4::new(v.map(|c| c as f64)) + f64x4::splat(b);
+        let e = f64x4::new(e.map(|c| c as f64)) * f64x4::splat(TILE_SNAP);
+        // within its error of a tile line: on it
+        let line = (w / f64x4::splat(Floor::TILE)).round() * f64x4::splat(Floor::TILE);
+        let w = (w - line).abs().simd_le(e).bitselect(line, w);
         ((w + f64x4::splat(Floor::HALF_WIDTH)) / f64x4::splat(Floor::TILE)).floor()
     };
     let mut bits = 0;
     for h in 0..2 {
         let quad = |a: &[f32; 8]| [a[4 * h], a[4 * h + 1], a[4 * h + 2], a[4 * h + 3]];
         // i + j is an exact integer: tiles of the finite floor are a few hundred
-        let s = tile(quad(&x), base.x) + tile(quad(&y), base.y);
+        let s = tile(quad(&x), quad(&ex), base.x) + tile(quad(&y), quad(&ey), base.y);
         let odd = s - f64x4::splat(2.0) * (s * f64x4::splat(0.5)).floor();
         bits |= odd.simd_eq(f64x4::ZERO).to_bitmask() << (4 * h);
     }

@@ -196,7 +196,12 @@ impl<'a> Reference<'a> {
         match found.target {
             Target::Floor => {
                 let s = floor::surface_ref(ray, found.hit.t);
-                (s, Floor::color_at(s.point.x, s.point.y), Floor::MATERIAL)
+                let (ex, ey) = (floor::TILE_SNAP * s.err.x, floor::TILE_SNAP * s.err.y);
+                (
+                    s,
+                    Floor::color_at_within(s.point.x, s.point.y, ex, ey),
+                    Floor::MATERIAL,
+                )
             }
             Target::Object(i) => {
                 let o = &self.scene.objects[i];

