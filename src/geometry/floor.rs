@@ -163,6 +163,27 @@ mod tests {
     }
 
     #[test]
+    fn points_within_their_error_of_a_tile_line_are_on_it() {
+        // x = 20 lies in tile 26 (odd with j = 25: black); 20 − 1e-9 in tile 25
+        assert_eq!(Floor::color_at(20.0, 1.0), DVec3::ZERO);
+        assert_eq!(Floor::color_at(20.0 - 1e-9, 1.0), DVec3::ONE);
+        assert_eq!(
+            Floor::color_at_within(20.0 - 1e-9, 1.0, 1e-8, 0.0),
+            DVec3::ZERO
+        );
+        assert_eq!(
+            Floor::color_at_within(20.0 - 1e-9, 1.0, 1e-10, 0.0),
+            DVec3::ONE
+        );
+        // the far edge y = 500 is in tile 50 (the spec's floor), also from just below
+        assert_eq!(
+            Floor::color_at_within(1.0, 500.0 - 1e-12, 0.0, 1e-11),
+            Floor::color_at(1.0, 500.0)
+        );
+        assert_ne!(Floor::color_at(1.0, 500.0), Floor::color_at(1.0, 499.0));
+    }
+
+    #[test]
     fn checkerboard_tiles_alternate() {
         assert_eq!(Floor::color_at(-499.0, -499.0), DVec3::ONE);
         assert_eq!(Floor::color_at(-479.0, -499.0), DVec3::ZERO);

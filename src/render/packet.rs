@@ -998,9 +998,14 @@ mod tests {
                     xs[k] = (x - base.x) as f32;
                     ys[k] = (y - base.y) as f32;
                 }
-                let white = checker_white(f32x8::new(xs), f32x8::new(ys), base);
+                // error bounds from none to more than the y jitter above
+                let es: [f32; 8] = std::array::from_fn(|k| [0.0, 1e-5, 1e-4, 1e-3][k % 4]);
+                let e8 = f32x8::new(es);
+                let white = checker_white(f32x8::new(xs), f32x8::new(ys), e8, e8, base);
                 for k in 0..8 {
-                    let c = Floor::color_at(xs[k] as f64 + base.x, ys[k] as f64 + base.y);
+                    let e = es[k] as f64 * TILE_SNAP;
+                    let (x, y) = (xs[k] as f64 + base.x, ys[k] as f64 + base.y);
+                    let c = Floor::color_at_within(x, y, e, e);
                     assert_eq!(
                         white.lane(k),
                         c == DVec3::ONE,
