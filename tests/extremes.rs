@@ -845,11 +845,13 @@ fn objects_just_below_the_floor_stay_hidden() {
 /// tile lines (x or y a multiple of 20; proved in 60-digit arithmetic by the
 /// independent checker): straight down at fov 90, a centre row on y = 0, the default
 /// eye looking at the origin. Such a point lies in the tile above the line (the spec's
-/// floor); a coordinate within its error bound of a line is taken as on it. Before,
-/// the f32 paths picked the tile by the rounding of the hit point: 112 of 2500, 32 of
-/// 1089 and 36 of 4096 pixels on the wrong tile, the reference 1 (all checked against
-/// the exact parities). Pass: every profile equal to the reference, and the reference
-/// symmetric where the view is: the column at x = 0 (tile line) in the tile of x > 0.
+/// floor); a coordinate within its rounding error of a line is taken as on it, the
+/// f32 paths' camera rays recomputed in f64 near lines. Before, the f32 paths picked
+/// the tile by the rounding of the hit point: 112 of 2500, 32 of 1089 and 36 of 4096
+/// pixels on the wrong tile, the reference 1, and a centre row of 101 pixels (all
+/// checked against exact parities by the independent checker). Pass: every profile
+/// equal to the reference, also 3e-5 beside the lines, and the column at x = 0 (a
+/// tile line) in the tile of x > 0.
 #[test]
 fn pixels_exactly_on_tile_lines_take_the_tile_above() {
     let s = scene("1 8 0  1  0 0 100  1 1 1  0");
@@ -863,6 +865,22 @@ fn pixels_exactly_on_tile_lines_take_the_tile_above() {
             Camera::look_at(DVec3::new(0.0, -200.0, 100.0), DVec3::ZERO, DVec3::Z, 80.0),
         ),
         (64, Some(aimed(Camera::default().eye, DVec3::ZERO))),
+        // the centre row and column of an odd size: x = 0 and y = 0 exactly
+        (
+            101,
+            Camera::look_at(DVec3::new(0.0, 0.0, 200.0), DVec3::ZERO, DVec3::Y, 90.0),
+        ),
+        // not ties: every fifth column 3e-5 short of a line (snapping the f32 point
+        // within 4x its error bound put 400 of 2500 pixels on the wrong tile)
+        (
+            50,
+            Camera::look_at(
+                DVec3::new(-0.00003, -0.0008, 200.0),
+                DVec3::new(-0.00003, -0.0008, 0.0),
+                DVec3::Y,
+                90.0,
+            ),
+        ),
     ];
     for (size, cam) in cams {
         let cam = cam.unwrap();

@@ -19,11 +19,15 @@ use crate::scene::Floor;
 /// `geometry::FLOOR_TIE`, the f32 twin).
 pub const TIE: f64 = 1.0 - 64.0 * f64::EPSILON;
 
-/// How many times its error bound (`err` of the surface) a floor point may lie from a
-/// tile line and still be taken as on it ([`crate::scene::Floor::color_at_within`]):
-/// the bound covers the hit's own arithmetic, not the rounding of the ray itself (the
-/// camera's pixel direction: a few ulps more, relative).
-pub const TILE_SNAP: f64 = 4.0;
+/// How far (f64) a floor point found at distance `t` along a unit ray from an origin
+/// of largest coordinate `origin` may lie from a tile line and still be taken as on
+/// it ([`crate::scene::Floor::color_at_within`]): 16 ulps of |o| + t, which covers the
+/// rounding of the hit and of the ray itself (a camera's pixel direction carries a
+/// few ulps relative to its length, so a coordinate the ray hardly moves along, such
+/// as x on a centre column looking along y, can be off by ulps of t, not of x).
+pub fn tile_tolerance(origin: f64, t: f64) -> f64 {
+    16.0 * f64::EPSILON * (origin + t)
+}
 
 /// Nearest t with 0 < t < t_max where the ray meets the finite floor.
 pub fn intersect_ref(ray: &Ray, t_max: f64) -> Option<f64> {

@@ -235,7 +235,13 @@ fn packet_supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
                 let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
                 let pixel = [px as u32, (big_first + py) as u32];
                 let c = p.trace_knobs::<ANY_HIT, EPS, GLASS>(
-                    &ray, active, pixel, &mut chain, &mut stats, &mut steps,
+                    &ray,
+                    active,
+                    pixel,
+                    Some(&grid),
+                    &mut chain,
+                    &mut stats,
+                    &mut steps,
                 );
                 stats.primary_rays += active.count() as u64;
                 let (r, g, b) = (c.x.to_array(), c.y.to_array(), c.z.to_array());

@@ -196,10 +196,10 @@ impl<'a> Reference<'a> {
         match found.target {
             Target::Floor => {
                 let s = floor::surface_ref(ray, found.hit.t);
-                let (ex, ey) = (floor::TILE_SNAP * s.err.x, floor::TILE_SNAP * s.err.y);
+                let e = floor::tile_tolerance(ray.origin.abs().max_element(), found.hit.t);
                 (
                     s,
-                    Floor::color_at_within(s.point.x, s.point.y, ex, ey),
+                    Floor::color_at_within(s.point.x, s.point.y, e, e),
                     Floor::MATERIAL,
                 )
             }
