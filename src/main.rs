@@ -392,16 +392,14 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
     })
 }
 
-/// Sizes rayon's global pool (so that `--threads` bounds every parallel part: the
-/// frame, the photon pass, the image encoder) and makes an interrupted run remove its
-/// temporary files. A pool that cannot start (a process limit) is an error, not a
-/// panic in the first parallel loop.
+/// Makes an interrupted run (SIGINT, SIGTERM, SIGHUP: exit code 130) remove its
+/// temporary files, and with `--threads` sizes rayon's global pool, so that the
+/// option bounds every parallel part (the frame, the photon pass, the image encoder);
+/// a pool that cannot start then (a process limit) is an error, not a panic in the
+/// first parallel loop. (Without `--threads` rayon starts its pool itself, lazily.)
 fn start(threads: Option<u32>) -> Result<(), Failure> {
     // (a second handler cannot be set; one is enough)
-    let _ = ctrlc::set_handler(|| {
-        octaray::output::remove_temporaries();
-        std::process::exit(130);
-    });
+    let _ = ctrlc::set_handler(|| octaray::output::remove_temporaries_and_exit(130));
     // Without `--threads` rayon starts its pool at the first parallel loop, after the
     // scene is read: started here, its idle workers spun through the serial start
     // and cost the given scene 3-4 % of its whole-process time.

@@ -546,6 +546,24 @@ fn special_files_and_bad_outputs_are_refused_up_front() {
     );
     // nothing written, no temporary file left
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    // a pipe is a file to read: the scene from stdin
+    let mut child = Command::new(env!("CARGO_BIN_EXE_octaray"))
+        .current_dir(&dir)
+        .args(["render", "/dev/stdin", "--size", "8", "-o", "piped.bmp"])
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let text = std::fs::read(scene_path("one_sphere.txt")).unwrap();
+    std::io::Write::write_all(&mut child.stdin.take().unwrap(), &text).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("piped.bmp").is_file());
 }
 
 /// An OBJ file may start with a byte-order mark (it once swallowed the first `v`

@@ -281,9 +281,9 @@ pub struct PrimSet {
     pub moller: bool,
     /// The world point of the frame's origin.
     pub base: DVec3,
-    /// By object index, the scene's shapes (meshes shared, not copied), for
-    /// [`PrimSet::floor_first`].
-    pub world: Vec<Shape>,
+    /// The spheres and quadrics of the scene in world coordinates, by object index
+    /// (ascending), for [`PrimSet::floor_first`].
+    pub curved: Vec<(u32, Shape)>,
 }
 
 impl PrimSet {
@@ -293,7 +293,10 @@ impl PrimSet {
         let mut s = PrimSet {
             floor: Some(floor::Floor32::new(base)),
             base,
-            world: scene.objects.iter().map(|o| o.shape.clone()).collect(),
+            curved: (scene.objects.iter().enumerate())
+                .filter(|(_, o)| matches!(o.shape, Shape::Sphere { .. } | Shape::Quadric(_)))
+                .map(|(i, o)| (i as u32, o.shape.clone()))
+                .collect(),
             ..PrimSet::default()
         };
         // the lowest and highest world z of each object (±∞: unbounded)
@@ -391,7 +394,10 @@ impl PrimSet {
         // moved the rim of a sphere sunk to a 0.001 cap by pixels), triangles from
         // the frame's (which triangle of a mesh a code names is not kept)
         let world = o + self.base;
-        let (t_obj, t_floor) = match (kind, self.world.get(self.object(code) as usize)) {
+        let obj = self.object(code);
+        let curved =
+            (self.curved.binary_search_by_key(&obj, |c| c.0).ok()).map(|k| &self.curved[k].1);
+        let (t_obj, t_floor) = match (kind, curved) {
             (PrimKind::Triangle | PrimKind::TriangleMoller, _) => (
                 self.triangles[i].plane_t_f64(o, d),
                 (floor_z as f64 - o.z) / d.z,

@@ -62,46 +62,62 @@ pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
     Ok(())
 }
 
-/// Temporary files being written, removed by [`remove_temporaries`] should the
-/// process be interrupted (a signal handler calls it).
+/// Temporary files being written, removed by [`remove_temporaries_and_exit`] should
+/// the process be interrupted (a signal handler calls it).
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Removes the temporary files still being written (an interrupted run leaves none).
-pub fn remove_temporaries() {
-    if let Ok(list) = TEMPORARIES.lock() {
+/// Removes the temporary files still being written and exits with `code`, holding the
+/// list's lock to the end so that no new temporary file appears meanwhile.
+pub fn remove_temporaries_and_exit(code: i32) -> ! {
+    let list = TEMPORARIES.lock();
+    if let Ok(list) = &list {
         for p in list.iter() {
             let _ = fs::remove_file(p);
         }
     }
+    std::process::exit(code)
 }
 
 /// Writes `bytes` to a fresh temporary file beside `path` and returns its path. Short
-/// name (a long target name plus a suffix would pass the 255-byte limit), unique per
-/// process and call.
+/// name (a long target name plus a suffix would pass the 255-byte limit), created
+/// exclusively (never truncating or following another process's file: two processes
+/// of the same PID, in two containers sharing a directory, take different names).
 fn write_temp_bytes(path: &Path, bytes: &[u8]) -> Result<PathBuf, OutputError> {
     static COUNT: AtomicU32 = AtomicU32::new(0);
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
-    let n = COUNT.fetch_add(1, Ordering::Relaxed);
-    let tmp_name = format!(".octaray-{}-{n}.tmp", std::process::id());
-    let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
-    if let Ok(mut list) = TEMPORARIES.lock() {
+    let io_error = |source| OutputError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    loop {
+        let n = COUNT.fetch_add(1, Ordering::Relaxed);
+        let tmp_name = format!(".octaray-{}-{n}.tmp", std::process::id());
+        let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
+        let mut list = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+        let file = fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp);
+        let mut file = match file {
+            Ok(f) => f,
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(io_error(e)),
+        };
         list.push(tmp.clone());
-    }
-    match fs::write(&tmp, bytes) {
-        Ok(()) => Ok(tmp),
-        Err(source) => {
-            forget_temp(&tmp);
-            Err(OutputError::Io {
-                path: path.display().to_string(),
-                source,
-            })
-        }
+        drop(list);
+        return match io::Write::write_all(&mut file, bytes) {
+            Ok(()) => Ok(tmp),
+            Err(e) => {
+                let _ = fs::remove_file(&tmp);
+                forget_temp(&tmp);
+                Err(io_error(e))
+            }
+        };
     }
 }
 
-/// Removes a temporary file (if still there) and forgets it.
+/// Forgets a temporary file (renamed into place, or removed).
 fn forget_temp(tmp: &Path) {
-    let _ = fs::remove_file(tmp);
     if let Ok(mut list) = TEMPORARIES.lock() {
         list.retain(|p| p != tmp);
     }
@@ -133,6 +149,9 @@ fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let tmp = write_temp_bytes(path, bytes)?;
     let renamed = fs::rename(&tmp, path);
+    if renamed.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
     forget_temp(&tmp);
     renamed.map_err(|source| OutputError::Io {
         path: path.display().to_string(),
@@ -149,11 +168,17 @@ pub fn write_image(fb: &Framebuffer, path: &Path) -> Result<(), OutputError> {
 /// Writes `fb` to `path` only if no file of that name exists; `Ok(false)` if one does
 /// (or any directory entry: a dangling symbolic link counts as taken).
 pub fn write_image_no_clobber(fb: &Framebuffer, path: &Path) -> Result<bool, OutputError> {
+    write_bytes_no_clobber(&encode(fb, path)?, path)
+}
+
+/// [`write_image_no_clobber`] of encoded bytes.
+fn write_bytes_no_clobber(bytes: &[u8], path: &Path) -> Result<bool, OutputError> {
     if fs::symlink_metadata(path).is_ok() {
         return Ok(false);
     }
-    let tmp = write_temp_bytes(path, &encode(fb, path)?)?;
+    let tmp = write_temp_bytes(path, bytes)?;
     let linked = fs::hard_link(&tmp, path);
+    let _ = fs::remove_file(&tmp);
     forget_temp(&tmp);
     match linked {
         Ok(()) => Ok(true),
@@ -186,10 +211,11 @@ fn next_free_from(dir: &Path, first: u32) -> (u32, PathBuf) {
 /// Writes `fb` under the next free `Output_1N.bmp` in `dir`, never overwriting: a name
 /// taken meanwhile (by another process) is skipped, not retried.
 pub fn write_next_output(fb: &Framebuffer, dir: &Path) -> Result<PathBuf, OutputError> {
+    let bytes = encode(fb, &dir.join(output_name(1)))?;
     let mut first = 1;
     loop {
         let (n, path) = next_free_from(dir, first);
-        if write_image_no_clobber(fb, &path)? {
+        if write_bytes_no_clobber(&bytes, &path)? {
             return Ok(path);
         }
         first = n + 1;
