@@ -45,6 +45,15 @@ pub fn intersect_ref(ray: &Ray, t_max: f64) -> Option<f64> {
     Floor::contains(p.x, p.y).then_some(t)
 }
 
+/// Tile colour at distance t along `ray`: a coordinate within [`tile_tolerance`] of a
+/// tile line counts as on it ([`Floor::color_at_within`]). The reference's floor
+/// colour, and the fast path's for camera rays near a tile line.
+pub fn color_ref(ray: &Ray, t: f64) -> DVec3 {
+    let p = ray.at(t);
+    let e = tile_tolerance(ray.origin.abs().max_element(), t);
+    Floor::color_at_within(p.x, p.y, e, e)
+}
+
 /// Surface at distance t; z is set to exactly 0, so only x and y carry error.
 pub fn surface_ref(ray: &Ray, t: f64) -> SurfacePoint {
     let p = ray.at(t);

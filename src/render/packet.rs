@@ -32,8 +32,9 @@ use super::caustic::{CausticMap, CausticSettings};
 use super::frame::render_bands;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::{Bvh, Steps};
-use crate::geometry::floor::{Floor32, tile_tolerance};
+use crate::geometry::floor::{self, Floor32};
 use crate::geometry::{PrimKind, PrimSet, Surface8, prim_code, split_code};
+use crate::math::Ray;
 use crate::math::packet::{
     Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32, offset_origin_x8,
 };
@@ -666,15 +667,13 @@ impl PacketRenderer {
             if !near.lane(k) {
                 continue;
             }
+            // the reference's camera ray, floor hit and colour
             let (i, j) = (pixel[0] + k as u32 % 4, pixel[1] + k as u32 / 4);
-            let d = grid.direction(i as f64, j as f64);
-            let t = -grid.eye.z / d.z;
-            let p = grid.eye + d * t;
-            if t.is_nan() || t <= 0.0 || !Floor::contains(p.x, p.y) {
+            let ray = Ray::new(grid.eye, grid.direction(i as f64, j as f64));
+            let Some(t) = floor::intersect_ref(&ray, f64::INFINITY) else {
                 continue;
-            }
-            let e = tile_tolerance(grid.eye.abs().max_element(), t);
-            let c = Floor::color_at_within(p.x, p.y, e, e).as_vec3();
+            };
+            let c = floor::color_ref(&ray, t).as_vec3();
             for (ch, v) in color.iter_mut().zip(c.to_array()) {
                 ch[k] = v;
             }

@@ -196,12 +196,7 @@ impl<'a> Reference<'a> {
         match found.target {
             Target::Floor => {
                 let s = floor::surface_ref(ray, found.hit.t);
-                let e = floor::tile_tolerance(ray.origin.abs().max_element(), found.hit.t);
-                (
-                    s,
-                    Floor::color_at_within(s.point.x, s.point.y, e, e),
-                    Floor::MATERIAL,
-                )
+                (s, floor::color_ref(ray, found.hit.t), Floor::MATERIAL)
             }
             Target::Object(i) => {
                 let o = &self.scene.objects[i];
