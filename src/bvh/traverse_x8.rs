@@ -357,8 +357,7 @@ impl Bvh {
         }
         if self.prims.floor.is_some() {
             steps.prims += 1;
-            self.prims
-                .intersect_x8(PrimKind::Floor, 0, 1, r, active, hit);
+            self.prims.intersect_floor_x8(r, active, hit);
         }
     }
 
