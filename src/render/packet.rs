@@ -756,6 +756,10 @@ impl PacketRenderer {
         if let Some(cone) = &light.cone {
             stats.cone_tests += m.count() as u64;
             m = m & cone.contains(p, lp);
+            // (most shading points of a narrow spotlight's scene lie outside it)
+            if m.none() {
+                return None;
+            }
         }
         let to_light = lp - p;
         let dist = to_light.length();
@@ -978,8 +982,10 @@ impl PacketRenderer {
             let rows = pixels.len() / width;
             for py in (0..rows).step_by(2) {
                 for px in (0..width).step_by(4) {
-                    let mut bits = 0u32;
-                    for lane in 0..8 {
+                    let full =
+                        px + 4 <= width && py + 2 <= rows && first_row + (py as u32) + 1 < height;
+                    let mut bits = if full { 0xff } else { 0u32 };
+                    for lane in (0..8).filter(|_| !full) {
                         let (x, y) = (px + lane % 4, py + lane / 4);
                         if x < width && y < rows && first_row + (y as u32) < height {
                             bits |= 1 << lane;
@@ -1002,12 +1008,28 @@ impl PacketRenderer {
                         &mut steps,
                     );
                     stats.primary_rays += active.count() as u64;
-                    let q = |v: f32x8| (v * f32x8::splat(255.0)).round().to_array();
+                    // channels in [0, 1]: rounded half away from zero (`round`),
+                    // then converted in SIMD, exactly (NaN → 0, as `as u8`)
+                    let q = |v: f32x8| (v * f32x8::splat(255.0)).round().round_int().to_array();
                     let (r, g, b) = (q(c.x), q(c.y), q(c.z));
-                    for lane in 0..8 {
-                        if bits >> lane & 1 == 1 {
-                            let (x, y) = (px + lane % 4, py + lane / 4);
-                            pixels[y * width + x] = [r[lane] as u8, g[lane] as u8, b[lane] as u8];
+                    let rgb = |lane: usize| [r[lane] as u8, g[lane] as u8, b[lane] as u8];
+                    if full {
+                        for row in 0..2 {
+                            let at = (py + row) * width + px;
+                            let k = 4 * row;
+                            pixels[at..at + 4].copy_from_slice(&[
+                                rgb(k),
+                                rgb(k + 1),
+                                rgb(k + 2),
+                                rgb(k + 3),
+                            ]);
+                        }
+                    } else {
+                        for lane in 0..8 {
+                            if bits >> lane & 1 == 1 {
+                                let (x, y) = (px + lane % 4, py + lane / 4);
+                                pixels[y * width + x] = rgb(lane);
+                            }
                         }
                     }
                 }
