@@ -42,8 +42,9 @@ fn format_for(path: &Path) -> Result<ImageFormat, OutputError> {
 }
 
 /// What can be known about writing `path` before any work: an image extension
-/// (with `image`), not a directory, in an existing directory. Checked before a
-/// render, so that a typo costs no render time.
+/// (with `image`), not a directory, in an existing directory, not a file without
+/// write permission, not a symbolic link to nothing ([`write_target`]). Checked
+/// before a render, so that a typo costs no render time.
 pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
     if image {
         format_for(path)?;
@@ -55,11 +56,34 @@ pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
     if path.is_dir() {
         return Err(io("is a directory"));
     }
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
+    let target = write_target(path)?;
+    let dir = target.parent().filter(|p| !p.as_os_str().is_empty());
     if dir.is_some_and(|d| !d.is_dir()) {
         return Err(io("no such directory"));
     }
     Ok(())
+}
+
+/// The file that writing `path` replaces: `path` itself, or, for a symbolic link, the
+/// file it names (the link stays, as `cp` leaves it; a rename would put a file in its
+/// place). Refused: a link to nothing (as `cp` refuses to write through one) and a
+/// file without write permission (replacing it by a rename would pass over that).
+fn write_target(path: &Path) -> Result<PathBuf, OutputError> {
+    let refuse = |message: &str| OutputError::Io {
+        path: path.display().to_string(),
+        source: io::Error::new(io::ErrorKind::PermissionDenied, message),
+    };
+    let target = match fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => fs::canonicalize(path)
+            .map_err(|_| refuse("a symbolic link to nothing: not written through"))?,
+        _ => path.to_path_buf(),
+    };
+    match fs::metadata(&target) {
+        Ok(m) if m.is_file() && m.permissions().readonly() => {
+            Err(refuse("no write permission: not replaced"))
+        }
+        _ => Ok(target),
+    }
 }
 
 /// Temporary files being written, removed by [`remove_temporaries_and_exit`] should
@@ -145,9 +169,16 @@ fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
 }
 
 /// Writes `bytes` to `path` whole or not at all: a temporary file beside it, then a
-/// rename over it (an existing file is replaced atomically, or left as it was).
+/// rename over it (an existing file is replaced atomically, keeping its permissions,
+/// or left as it was; a symbolic link is written through, [`write_target`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let target = write_target(path)?;
+    let path = target.as_path();
     let tmp = write_temp_bytes(path, bytes)?;
+    if let Ok(m) = fs::metadata(path) {
+        // (best effort: the mode bits this user may set)
+        let _ = fs::set_permissions(&tmp, m.permissions());
+    }
     let renamed = fs::rename(&tmp, path);
     if renamed.is_err() {
         let _ = fs::remove_file(&tmp);
@@ -303,6 +334,66 @@ mod tests {
         assert!(check_output(&dir.join("missing/a.bmp"), true).is_err());
         fs::create_dir_all(dir.join("d.bmp")).unwrap();
         assert!(check_output(&dir.join("d.bmp"), true).is_err());
+    }
+
+    /// Replacing a file keeps its permissions; a symbolic link stays a link and its
+    /// file gets the image; a link to nothing and a file without write permission are
+    /// refused, up front and when writing, and left as they were (fuzz round 9).
+    #[cfg(unix)]
+    #[test]
+    fn replaced_files_keep_their_mode_and_links_are_written_through() {
+        use std::os::unix::fs::{PermissionsExt, symlink};
+        let dir = tempfile_dir("replace");
+        let mode = |p: &Path| fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        let kept = dir.join("kept.bmp");
+        fs::write(&kept, b"old").unwrap();
+        fs::set_permissions(&kept, fs::Permissions::from_mode(0o640)).unwrap();
+        write_image(&tiny(), &kept).unwrap();
+        assert_eq!(mode(&kept), 0o640);
+        assert_eq!(Framebuffer::load(&kept).unwrap(), tiny());
+
+        let (real, link) = (dir.join("real.bmp"), dir.join("link.bmp"));
+        fs::write(&real, b"old").unwrap();
+        symlink(&real, &link).unwrap();
+        assert!(check_output(&link, true).is_ok());
+        write_image(&tiny(), &link).unwrap();
+        assert!(
+            fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(Framebuffer::load(&real).unwrap(), tiny());
+
+        let dangling = dir.join("dangling.bmp");
+        symlink(dir.join("nowhere.bmp"), &dangling).unwrap();
+        assert!(check_output(&dangling, true).is_err());
+        assert!(write_image(&tiny(), &dangling).is_err());
+        assert!(!dir.join("nowhere.bmp").exists());
+        assert!(
+            fs::symlink_metadata(&dangling)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+
+        let locked = dir.join("locked.bmp");
+        fs::write(&locked, b"mine").unwrap();
+        fs::set_permissions(&locked, fs::Permissions::from_mode(0o444)).unwrap();
+        assert!(check_output(&locked, true).is_err());
+        assert!(write_image(&tiny(), &locked).is_err());
+        assert_eq!(fs::read(&locked).unwrap(), b"mine");
+        let leftovers = fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .starts_with('.')
+            })
+            .count();
+        assert_eq!(leftovers, 0);
     }
 
     fn tempfile_dir(tag: &str) -> PathBuf {
