@@ -61,29 +61,67 @@ pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
     if dir.is_some_and(|d| !d.is_dir()) {
         return Err(io("no such directory"));
     }
+    // a temporary file can be made beside it (a directory without write permission,
+    // a read-only file system)
+    let probe = write_temp_bytes(&target, b"", None).map_err(|e| named(e, path))?;
+    let _ = fs::remove_file(&probe);
+    forget_temp(&probe);
     Ok(())
+}
+
+/// `e` reported under the name the user gave (not the file a link led to).
+fn named(e: OutputError, path: &Path) -> OutputError {
+    match e {
+        OutputError::Io { source, .. } => OutputError::Io {
+            path: path.display().to_string(),
+            source,
+        },
+        e => e,
+    }
 }
 
 /// The file that writing `path` replaces: `path` itself, or, for a symbolic link, the
 /// file it names (the link stays, as `cp` leaves it; a rename would put a file in its
-/// place). Refused: a link to nothing (as `cp` refuses to write through one) and a
-/// file without write permission (replacing it by a rename would pass over that).
+/// place). Refused: a link to nothing (as `cp` refuses to write through one), anything
+/// but a regular file (a link to a device or a directory), and a file this process may
+/// not write (replacing it by a rename would pass over that; tested by opening it for
+/// writing, which changes nothing).
 fn write_target(path: &Path) -> Result<PathBuf, OutputError> {
-    let refuse = |message: &str| OutputError::Io {
+    let error = |source: io::Error| OutputError::Io {
         path: path.display().to_string(),
-        source: io::Error::new(io::ErrorKind::PermissionDenied, message),
+        source,
     };
     let target = match fs::symlink_metadata(path) {
-        Ok(m) if m.file_type().is_symlink() => fs::canonicalize(path)
-            .map_err(|_| refuse("a symbolic link to nothing: not written through"))?,
+        Ok(m) if m.file_type().is_symlink() => fs::canonicalize(path).map_err(|e| {
+            error(if e.kind() == io::ErrorKind::NotFound {
+                io::Error::new(e.kind(), "a symbolic link to nothing: not written through")
+            } else {
+                e
+            })
+        })?,
         _ => path.to_path_buf(),
     };
-    match fs::metadata(&target) {
-        Ok(m) if m.is_file() && m.permissions().readonly() => {
-            Err(refuse("no write permission: not replaced"))
-        }
-        _ => Ok(target),
+    let meta = fs::metadata(&target);
+    if meta.as_ref().is_ok_and(|m| !m.is_file()) {
+        // a directory, a device, a pipe: a rename would put a file in its place
+        return Err(error(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "not a regular file: not replaced",
+        )));
     }
+    if meta.is_ok() {
+        fs::OpenOptions::new()
+            .write(true)
+            .open(&target)
+            .map_err(|e| {
+                error(if e.kind() == io::ErrorKind::PermissionDenied {
+                    io::Error::new(e.kind(), "no write permission: not replaced")
+                } else {
+                    e
+                })
+            })?;
+    }
+    Ok(target)
 }
 
 /// Temporary files being written, removed by [`remove_temporaries_and_exit`] should
@@ -102,11 +140,16 @@ pub fn remove_temporaries_and_exit(code: i32) -> ! {
     std::process::exit(code)
 }
 
-/// Writes `bytes` to a fresh temporary file beside `path` and returns its path. Short
+/// Writes `bytes` to a fresh temporary file beside `path`, with permissions `mode` if
+/// given (set before the bytes are written), and returns its path. Short
 /// name (a long target name plus a suffix would pass the 255-byte limit), created
 /// exclusively (never truncating or following another process's file: two processes
 /// of the same PID, in two containers sharing a directory, take different names).
-fn write_temp_bytes(path: &Path, bytes: &[u8]) -> Result<PathBuf, OutputError> {
+fn write_temp_bytes(
+    path: &Path,
+    bytes: &[u8],
+    mode: Option<fs::Permissions>,
+) -> Result<PathBuf, OutputError> {
     static COUNT: AtomicU32 = AtomicU32::new(0);
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
     let io_error = |source| OutputError::Io {
@@ -129,6 +172,10 @@ fn write_temp_bytes(path: &Path, bytes: &[u8]) -> Result<PathBuf, OutputError> {
         };
         list.push(tmp.clone());
         drop(list);
+        if let Some(mode) = mode {
+            // (best effort: the mode bits this user may set)
+            let _ = file.set_permissions(mode);
+        }
         return match io::Write::write_all(&mut file, bytes) {
             Ok(()) => Ok(tmp),
             Err(e) => {
@@ -173,13 +220,9 @@ fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
 /// or left as it was; a symbolic link is written through, [`write_target`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let target = write_target(path)?;
-    let path = target.as_path();
-    let tmp = write_temp_bytes(path, bytes)?;
-    if let Ok(m) = fs::metadata(path) {
-        // (best effort: the mode bits this user may set)
-        let _ = fs::set_permissions(&tmp, m.permissions());
-    }
-    let renamed = fs::rename(&tmp, path);
+    let mode = fs::metadata(&target).ok().map(|m| m.permissions());
+    let tmp = write_temp_bytes(&target, bytes, mode).map_err(|e| named(e, path))?;
+    let renamed = fs::rename(&tmp, &target);
     if renamed.is_err() {
         let _ = fs::remove_file(&tmp);
     }
@@ -207,7 +250,7 @@ fn write_bytes_no_clobber(bytes: &[u8], path: &Path) -> Result<bool, OutputError
     if fs::symlink_metadata(path).is_ok() {
         return Ok(false);
     }
-    let tmp = write_temp_bytes(path, bytes)?;
+    let tmp = write_temp_bytes(path, bytes, None)?;
     let linked = fs::hard_link(&tmp, path);
     let _ = fs::remove_file(&tmp);
     forget_temp(&tmp);
@@ -342,14 +385,15 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn replaced_files_keep_their_mode_and_links_are_written_through() {
-        use std::os::unix::fs::{PermissionsExt, symlink};
+        use std::os::unix::fs::{FileTypeExt, PermissionsExt, symlink};
         let dir = tempfile_dir("replace");
         let mode = |p: &Path| fs::metadata(p).unwrap().permissions().mode() & 0o777;
         let kept = dir.join("kept.bmp");
         fs::write(&kept, b"old").unwrap();
-        fs::set_permissions(&kept, fs::Permissions::from_mode(0o640)).unwrap();
+        // (a mode no umask gives a new file)
+        fs::set_permissions(&kept, fs::Permissions::from_mode(0o604)).unwrap();
         write_image(&tiny(), &kept).unwrap();
-        assert_eq!(mode(&kept), 0o640);
+        assert_eq!(mode(&kept), 0o604);
         assert_eq!(Framebuffer::load(&kept).unwrap(), tiny());
 
         let (real, link) = (dir.join("real.bmp"), dir.join("link.bmp"));
@@ -365,6 +409,17 @@ mod tests {
         );
         assert_eq!(Framebuffer::load(&real).unwrap(), tiny());
 
+        let device = dir.join("null.bmp");
+        symlink("/dev/null", &device).unwrap();
+        assert!(check_output(&device, true).is_err());
+        assert!(write_image(&tiny(), &device).is_err());
+        assert!(
+            fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_char_device()
+        );
+
         let dangling = dir.join("dangling.bmp");
         symlink(dir.join("nowhere.bmp"), &dangling).unwrap();
         assert!(check_output(&dangling, true).is_err());
@@ -377,12 +432,21 @@ mod tests {
                 .is_symlink()
         );
 
+        // a file this process may not write is left alone (root may write any file,
+        // and then replaces it, as `cp` would)
         let locked = dir.join("locked.bmp");
         fs::write(&locked, b"mine").unwrap();
         fs::set_permissions(&locked, fs::Permissions::from_mode(0o444)).unwrap();
-        assert!(check_output(&locked, true).is_err());
-        assert!(write_image(&tiny(), &locked).is_err());
-        assert_eq!(fs::read(&locked).unwrap(), b"mine");
+        if fs::OpenOptions::new().write(true).open(&locked).is_err() {
+            assert!(check_output(&locked, true).is_err());
+            assert!(write_image(&tiny(), &locked).is_err());
+            assert_eq!(fs::read(&locked).unwrap(), b"mine");
+        } else {
+            assert!(check_output(&locked, true).is_ok());
+            write_image(&tiny(), &locked).unwrap();
+            assert_eq!(Framebuffer::load(&locked).unwrap(), tiny());
+            assert_eq!(mode(&locked), 0o444);
+        }
         let leftovers = fs::read_dir(&dir)
             .unwrap()
             .filter(|e| {
