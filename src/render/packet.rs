@@ -863,22 +863,25 @@ impl PacketRenderer {
         steps: &mut Steps,
     ) -> Vec3x8 {
         chain.clear();
-        let mut ray = *camera;
+        // the camera packet by reference (a copy was a memcpy of 480 bytes per packet),
+        // the mirror packets in `bounced`
+        let mut bounced: RayPacket8;
+        let mut ray = camera;
         let mut active = active;
         let mut level = path.level;
         let mut weight = path.weight;
         loop {
-            let hit = self.closest(&ray, active, steps);
+            let hit = self.closest(ray, active, steps);
             let lanes = active & hit.hit_mask();
             if lanes.none() {
                 break;
             }
-            let mut g = self.gather(&ray, &hit, lanes);
+            let mut g = self.gather(ray, &hit, lanes);
             if level == 1
                 && path.lambda.is_none()
                 && let Some(grid) = &path.grid
             {
-                self.camera_tiles(&ray, &hit, lanes, grid, path.pixel, &mut g);
+                self.camera_tiles(ray, &hit, lanes, grid, path.pixel, &mut g);
             }
             let mut local = self.phong::<ANY_HIT, EPS>(&g, -ray.dir, lanes, stats, steps);
             let mut kr = g.kr;
@@ -903,13 +906,13 @@ impl PacketRenderer {
                         if path.lambda.is_none() {
                             // RGB: the reflection goes on here, weighted per channel
                             let (side, w) =
-                                self.split_rgb::<ANY_HIT, EPS>(&ray, &g, &gh, &here, stats, steps);
+                                self.split_rgb::<ANY_HIT, EPS>(ray, &g, &gh, &here, stats, steps);
                             local = local + side;
                             kr = glass.select(w.x.max(w.y).max(w.z), kr);
                             tint = Some(Vec3x8::select(glass, w, Vec3x8::new(kr, kr, kr)));
                         } else {
                             let m =
-                                self.split_mono::<ANY_HIT, EPS>(&ray, &g, &gh, &here, stats, steps);
+                                self.split_mono::<ANY_HIT, EPS>(ray, &g, &gh, &here, stats, steps);
                             local = local + m.side;
                             kr = glass.select(m.main_weight, kr);
                             turn = Some((glass, m.main_dir, m.refracted));
@@ -935,7 +938,8 @@ impl PacketRenderer {
                 refracted = next & t;
             }
             let o = self.leave::<EPS>(g.point, g.err, n, d);
-            ray = RayPacket8::new(o, d, next);
+            bounced = RayPacket8::new(o, d, next);
+            ray = &bounced;
             active = next;
             stats.reflection_rays += next.and_not(refracted).count() as u64;
             stats.refraction_rays += refracted.count() as u64;
