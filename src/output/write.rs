@@ -330,18 +330,7 @@ mod tests {
         assert_eq!(fs::read(dir.join("Output_11.bmp")).unwrap(), b"mine");
         let p = write_next_output(&tiny(), &dir).unwrap();
         assert_eq!(p.file_name().unwrap(), "Output_13.bmp");
-        // No temporary files are left behind.
-        let leftovers = fs::read_dir(&dir)
-            .unwrap()
-            .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .file_name()
-                    .to_string_lossy()
-                    .starts_with('.')
-            })
-            .count();
-        assert_eq!(leftovers, 0);
+        assert_eq!(temporaries_in(&dir), 0);
     }
 
     /// A dangling symbolic link named Output_11.bmp is a taken name: skipped, not
@@ -447,17 +436,18 @@ mod tests {
             assert_eq!(Framebuffer::load(&locked).unwrap(), tiny());
             assert_eq!(mode(&locked), 0o444);
         }
-        let leftovers = fs::read_dir(&dir)
+        assert_eq!(temporaries_in(&dir), 0);
+    }
+
+    /// Temporary files left behind in `dir` (their names start with a dot).
+    fn temporaries_in(dir: &Path) -> usize {
+        fs::read_dir(dir)
             .unwrap()
             .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .file_name()
-                    .to_string_lossy()
-                    .starts_with('.')
+                let name = e.as_ref().unwrap().file_name();
+                name.to_string_lossy().starts_with('.')
             })
-            .count();
-        assert_eq!(leftovers, 0);
+            .count()
     }
 
     fn tempfile_dir(tag: &str) -> PathBuf {
