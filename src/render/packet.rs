@@ -988,13 +988,17 @@ impl PacketRenderer {
                 for px in (0..width).step_by(4) {
                     let full =
                         px + 4 <= width && py + 2 <= rows && first_row + (py as u32) + 1 < height;
-                    let mut bits = if full { 0xff } else { 0u32 };
-                    for lane in (0..8).filter(|_| !full) {
+                    let inside = |lane: usize| {
                         let (x, y) = (px + lane % 4, py + lane / 4);
-                        if x < width && y < rows && first_row + (y as u32) < height {
-                            bits |= 1 << lane;
-                        }
-                    }
+                        x < width && y < rows && first_row + (y as u32) < height
+                    };
+                    let bits = if full {
+                        0xff
+                    } else {
+                        (0..8)
+                            .filter(|&lane| inside(lane))
+                            .fold(0u32, |b, l| b | 1 << l)
+                    };
                     let active = Mask8::from_bits(bits);
                     let i = lane_x + f32x8::splat(px as f32);
                     let j = lane_y + f32x8::splat((first_row as usize + py) as f32);
