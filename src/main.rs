@@ -335,7 +335,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         size.height,
         args.profile,
         args.threads.map_or_else(
-            || rayon::current_num_threads().to_string(),
+            || octaray::render::frame::threads().to_string(),
             |t| t.to_string()
         ),
         secs,
@@ -403,14 +403,12 @@ fn start(threads: Option<u32>) -> Result<(), Failure> {
     // Without `--threads` rayon starts its pool at the first parallel loop, after the
     // scene is read: started here, its idle workers spun through the serial start
     // and cost the given scene 3-4 % of its whole-process time.
+    // (there, should its threads not start, the frame runs on this thread alone)
     let Some(n) = threads else { return Ok(()) };
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n as usize)
-        .build_global()
-        .map_err(|e| Failure {
-            code: 1,
-            message: format!("cannot start {n} worker threads: {e}"),
-        })
+    octaray::render::frame::start_pool(n as usize).map_err(|e| Failure {
+        code: 1,
+        message: format!("cannot start {n} worker threads: {e}"),
+    })
 }
 
 fn main() -> ExitCode {
@@ -431,6 +429,11 @@ fn main() -> ExitCode {
             ..RenderArgs::default()
         }),
     });
+    if octaray::render::frame::serial() {
+        say!(
+            "octaray: warning: worker threads could not start (a process limit?); ran on one thread"
+        );
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {

@@ -288,7 +288,7 @@ pub fn markdown(
          the same counted outside the masks of legitimate differences (silhouettes from the \
          reference's primary-hit ids, edges where the reference jumps by more than 24/255 to a \
          neighbour). Plot: `profiles/tradeoff.png` (PSNR against time, log scale).\n",
-        rayon::current_num_threads()
+        crate::render::frame::threads()
     );
     let table = |md: &mut String, rows: &[Row]| {
         let _ = writeln!(

@@ -597,3 +597,63 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
         parsed.warnings
     );
 }
+
+/// Where worker threads cannot start (a process or container limit: `prlimit --nproc`,
+/// as another user when root, whom the limit does not bind), `render` without
+/// `--threads` renders on its one thread, with a warning, and writes the same image;
+/// with `--threads 2` it stops with exit 1 and says why. Rayon panicked in both
+/// (fuzz round 9).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_limit_on_threads_renders_on_one_thread() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = std::env::temp_dir().join(format!("octaray-nproc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
+    // a copy any user may run (the build directory may not be readable to others)
+    let exe = dir.join("octaray");
+    std::fs::copy(env!("CARGO_BIN_EXE_octaray"), &exe).unwrap();
+    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let free = Command::new(&exe)
+        .args(["render", "--size", "16", "-o"])
+        .arg(dir.join("free.bmp"))
+        .output()
+        .unwrap();
+    assert!(free.status.success(), "{free:?}");
+    let root = Command::new("id").arg("-u").output().unwrap().stdout == b"0\n";
+    let limited = |threads: &[&str], out: &str| {
+        let mut c = Command::new("prlimit");
+        c.arg("--nproc=1");
+        if root {
+            c.args([
+                "setpriv",
+                "--reuid=65534",
+                "--regid=65534",
+                "--clear-groups",
+            ]);
+        }
+        c.arg(&exe)
+            .args(["render", "--size", "16"])
+            .args(threads)
+            .arg("-o")
+            .arg(dir.join(out))
+            .output()
+            .expect("prlimit (util-linux) runs")
+    };
+    let out = limited(&[], "limited.bmp");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("ran on one thread"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        std::fs::read(dir.join("limited.bmp")).unwrap(),
+        std::fs::read(dir.join("free.bmp")).unwrap()
+    );
+    let out = limited(&["--threads", "2"], "two.bmp");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot start 2 worker threads"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -35,15 +35,20 @@ pub fn encode(fb: &Framebuffer) -> Vec<u8> {
     head[38..42].copy_from_slice(&le32(2835)); // 72 dpi
     head[42..46].copy_from_slice(&le32(2835));
     if stride > 0 {
-        out[HEADER..]
-            .par_chunks_mut(stride)
-            .enumerate()
-            .for_each(|(i, row)| {
-                let src = &fb.pixels[(h - 1 - i) * w..(h - i) * w];
-                for (dst, p) in row.chunks_exact_mut(3).zip(src) {
-                    dst.copy_from_slice(&[p[2], p[1], p[0]]);
-                }
-            });
+        let row = |(i, row): (usize, &mut [u8])| {
+            let src = &fb.pixels[(h - 1 - i) * w..(h - i) * w];
+            for (dst, p) in row.chunks_exact_mut(3).zip(src) {
+                dst.copy_from_slice(&[p[2], p[1], p[0]]);
+            }
+        };
+        if crate::render::frame::parallel() {
+            out[HEADER..]
+                .par_chunks_mut(stride)
+                .enumerate()
+                .for_each(row);
+        } else {
+            out[HEADER..].chunks_mut(stride).enumerate().for_each(row);
+        }
     }
     out
 }

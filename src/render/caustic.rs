@@ -541,52 +541,53 @@ impl CausticMap {
                 k += BLOCK;
             }
         }
-        let results: Vec<(Vec<Photon>, u64)> = jobs
-            .par_iter()
-            .map(|&(e, k0, k1)| {
-                let mut out = Vec::new();
-                let mut rays = 0;
-                let em = &emitters[e];
-                let per_emitter = counts[e];
-                let shift = {
-                    let h = |i: u64| unit_from_hash(hash_keys(&[settings.seed, e as u64, i]));
-                    [h(1), h(2)]
-                };
-                for k in k0..k1 {
-                    let [u1, u2] = r2(k, shift);
-                    let dir = em.sample.sample(u1, u2);
-                    if em.keep.is_some_and(|c| !c.contains(dir)) {
+        let job = |&(e, k0, k1): &(usize, u64, u64)| {
+            let mut out = Vec::new();
+            let mut rays = 0;
+            let em = &emitters[e];
+            let per_emitter = counts[e];
+            let shift = {
+                let h = |i: u64| unit_from_hash(hash_keys(&[settings.seed, e as u64, i]));
+                [h(1), h(2)]
+            };
+            for k in k0..k1 {
+                let [u1, u2] = r2(k, shift);
+                let dir = em.sample.sample(u1, u2);
+                if em.keep.is_some_and(|c| !c.contains(dir)) {
+                    continue;
+                }
+                if let Some((axis, cutoff)) = em.spot {
+                    let angle = axis.cross(dir).length().atan2(axis.dot(dir));
+                    if angle.to_degrees() > cutoff {
                         continue;
                     }
-                    if let Some((axis, cutoff)) = em.spot {
-                        let angle = axis.cross(dir).length().atan2(axis.dot(dir));
-                        if angle.to_degrees() > cutoff {
-                            continue;
-                        }
-                    }
-                    // the wavelength is independent of the direction (a hash, not a
-                    // second low-discrepancy axis that could correlate with it)
-                    let key = hash_keys(&[settings.seed, e as u64, k, 0xC0FF_EE00]);
-                    let lambda =
-                        LAMBDA_MIN_NM + unit_from_hash(key) * (LAMBDA_MAX_NM - LAMBDA_MIN_NM);
-                    let power = em.color * spectral_weight(lambda) * em.sample.solid_angle()
-                        / per_emitter as f64;
-                    if let Some(p) = trace_photon(
-                        scene,
-                        tracer,
-                        em.position,
-                        dir,
-                        lambda,
-                        power,
-                        key,
-                        &mut rays,
-                    ) {
-                        out.push(p);
-                    }
                 }
-                (out, rays)
-            })
-            .collect();
+                // the wavelength is independent of the direction (a hash, not a
+                // second low-discrepancy axis that could correlate with it)
+                let key = hash_keys(&[settings.seed, e as u64, k, 0xC0FF_EE00]);
+                let lambda = LAMBDA_MIN_NM + unit_from_hash(key) * (LAMBDA_MAX_NM - LAMBDA_MIN_NM);
+                let power = em.color * spectral_weight(lambda) * em.sample.solid_angle()
+                    / per_emitter as f64;
+                if let Some(p) = trace_photon(
+                    scene,
+                    tracer,
+                    em.position,
+                    dir,
+                    lambda,
+                    power,
+                    key,
+                    &mut rays,
+                ) {
+                    out.push(p);
+                }
+            }
+            (out, rays)
+        };
+        let results: Vec<(Vec<Photon>, u64)> = if super::frame::parallel() {
+            jobs.par_iter().map(job).collect()
+        } else {
+            jobs.iter().map(job).collect()
+        };
         let rays = results.iter().map(|r| r.1).sum();
         let photons: Vec<Photon> = results.into_iter().flat_map(|r| r.0).collect();
         let mut map = CausticMap::from_photons(photons, radius);

@@ -2,7 +2,7 @@
 //! with an optional progress bar.
 
 use std::io::IsTerminal;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -34,14 +34,17 @@ where
         ProgressBar::hidden()
     };
     let work = |pixels: &mut [[u8; 3]]| {
-        pixels
-            .par_chunks_mut(settings.width as usize * band as usize)
-            .enumerate()
-            .for_each(|(k, band_pixels)| {
-                let stats = render_band(k as u32 * band, band_pixels);
-                total.lock().expect("no panics while holding").add(&stats);
-                bar.inc((band_pixels.len() / settings.width as usize) as u64);
-            });
+        let rows = settings.width as usize * band as usize;
+        let one = |(k, band_pixels): (usize, &mut [[u8; 3]])| {
+            let stats = render_band(k as u32 * band, band_pixels);
+            total.lock().expect("no panics while holding").add(&stats);
+            bar.inc((band_pixels.len() / settings.width as usize) as u64);
+        };
+        if parallel() {
+            pixels.par_chunks_mut(rows).enumerate().for_each(one);
+        } else {
+            pixels.chunks_mut(rows).enumerate().for_each(one);
+        }
     };
     with_threads(settings.threads, || work(&mut image.pixels));
     bar.finish_and_clear();
@@ -56,12 +59,52 @@ where
 /// the current pool: the same result, other threads.
 pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> R {
     match threads {
-        Some(n) if n != rayon::current_num_threads() => {
+        Some(n) if n != self::threads() => {
             match rayon::ThreadPoolBuilder::new().num_threads(n).build() {
                 Ok(pool) => pool.install(f),
                 Err(_) => f(),
             }
         }
         _ => f(),
+    }
+}
+
+/// Whether rayon's global pool runs: `Some` once [`start_pool`] or [`parallel`] has
+/// tried to start it.
+static POOL: OnceLock<bool> = OnceLock::new();
+
+/// Starts rayon's global pool with `threads` workers (the command line's `--threads`),
+/// before any parallel loop.
+pub fn start_pool(threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
+    let started = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global();
+    let _ = POOL.set(started.is_ok());
+    started
+}
+
+/// Whether a parallel loop may run on rayon's pools: on a worker of one, or when the
+/// global pool runs, which is started here at the first such loop (where rayon would
+/// start it). Where its threads cannot start (a process or container limit), rayon
+/// would panic at every parallel loop: they run on the calling thread instead, and
+/// [`serial`] tells.
+pub fn parallel() -> bool {
+    rayon::current_thread_index().is_some()
+        || *POOL.get_or_init(|| rayon::ThreadPoolBuilder::new().build_global().is_ok())
+}
+
+/// Whether parallel loops have been running on the calling thread because the worker
+/// threads could not start.
+pub fn serial() -> bool {
+    POOL.get() == Some(&false)
+}
+
+/// The threads parallel loops run on here: the current pool's, or 1 where its threads
+/// could not start ([`parallel`]).
+pub fn threads() -> usize {
+    if parallel() {
+        rayon::current_num_threads()
+    } else {
+        1
     }
 }

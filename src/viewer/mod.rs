@@ -139,6 +139,8 @@ pub struct ViewConfig {
 pub enum ViewerError {
     #[error("cannot open a window (is DISPLAY set?): {0}")]
     Window(String),
+    #[error("cannot start the viewer's {0} thread: {1}")]
+    Thread(&'static str, std::io::Error),
 }
 
 /// Maps a key to the camera motion it drives (the assignment's keys; the number-pad
@@ -289,17 +291,16 @@ fn present_into(image: &Framebuffer, w: usize, h: usize, buffer: &mut Vec<u32>) 
     }
 }
 
+/// A worker thread: where its jobs go, where its results come back, and its handle.
+type Worker<J, R> = (mpsc::Sender<J>, mpsc::Receiver<R>, thread::JoinHandle<()>);
+
 /// The render worker: takes jobs one at a time, sends finished frames back. Ends when
 /// the job sender is dropped.
 fn spawn_render_worker(
     scene: Arc<Scene>,
     profile: Profile,
     moving_profile: Profile,
-) -> (
-    mpsc::Sender<Job>,
-    mpsc::Receiver<Frame>,
-    thread::JoinHandle<()>,
-) {
+) -> Result<Worker<Job, Frame>, ViewerError> {
     let (job_tx, job_rx) = mpsc::channel::<Job>();
     let (frame_tx, frame_rx) = mpsc::channel::<Frame>();
     let handle = thread::Builder::new()
@@ -315,8 +316,8 @@ fn spawn_render_worker(
                 }
             }
         })
-        .expect("spawning a thread");
-    (job_tx, frame_rx, handle)
+        .map_err(|e| ViewerError::Thread("render", e))?;
+    Ok((job_tx, frame_rx, handle))
 }
 
 /// What became of a capture.
@@ -346,11 +347,7 @@ fn spawn_capture_worker(
     scene: Arc<Scene>,
     profile: Profile,
     out_dir: PathBuf,
-) -> (
-    mpsc::Sender<Camera>,
-    mpsc::Receiver<CaptureDone>,
-    thread::JoinHandle<()>,
-) {
+) -> Result<Worker<Camera, CaptureDone>, ViewerError> {
     let (cam_tx, cam_rx) = mpsc::channel::<Camera>();
     let (done_tx, done_rx) = mpsc::channel::<CaptureDone>();
     let handle = thread::Builder::new()
@@ -379,8 +376,8 @@ fn spawn_capture_worker(
                 let _ = done_tx.send(done);
             }
         })
-        .expect("spawning a thread");
-    (cam_tx, done_rx, handle)
+        .map_err(|e| ViewerError::Thread("capture", e))?;
+    Ok((cam_tx, done_rx, handle))
 }
 
 fn fmt_vec(v: DVec3) -> String {
@@ -446,12 +443,12 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
         config.scene.clone(),
         config.profile.clone(),
         config.moving_profile.clone(),
-    );
+    )?;
     let (capture_tx, capture_rx, capture_thread) = spawn_capture_worker(
         config.scene.clone(),
         config.capture_profile.clone(),
         config.out_dir.clone(),
-    );
+    )?;
 
     let scene_label = Path::new(&config.scene_name).file_name().map_or_else(
         || config.scene_name.clone(),
@@ -774,7 +771,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
     BenchReport {
         size,
         profile: profile.name.clone(),
-        threads: rayon::current_num_threads(),
+        threads: crate::render::frame::threads(),
         lines: vec![full, adaptive],
         stop_to_full,
         stop_passes,
