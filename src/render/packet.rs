@@ -972,13 +972,9 @@ impl PacketRenderer {
         settings: &RenderSettings,
     ) -> Rendered {
         let grid = settings.camera.pixel_grid(settings.width, settings.height);
-        let eye = (grid.eye - self.base).as_vec3();
-        let tl = (grid.top_left - grid.eye).as_vec3();
-        let (du, dv) = (grid.du.as_vec3(), grid.dv.as_vec3());
+        let camera = CameraPackets::new(&grid, self.base);
         let width = settings.width as usize;
-        let height = settings.height;
-        let lane_x = f32x8::new([0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0]);
-        let lane_y = f32x8::new([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+        let height = settings.height as usize;
         render_bands(settings, BAND_ROWS, |first_row, pixels| {
             let mut stats = RenderStats::default();
             let mut steps = Steps::default();
@@ -986,26 +982,12 @@ impl PacketRenderer {
             let rows = pixels.len() / width;
             for py in (0..rows).step_by(2) {
                 for px in (0..width).step_by(4) {
-                    let full =
-                        px + 4 <= width && py + 2 <= rows && first_row + (py as u32) + 1 < height;
-                    let inside = |lane: usize| {
-                        let (x, y) = (px + lane % 4, py + lane / 4);
-                        x < width && y < rows && first_row + (y as u32) < height
-                    };
-                    let bits = if full {
-                        0xff
-                    } else {
-                        (0..8)
-                            .filter(|&lane| inside(lane))
-                            .fold(0u32, |b, l| b | 1 << l)
-                    };
+                    let row = first_row as usize + py;
+                    let bits = CameraPackets::lanes(px, py, width, rows, row, height);
+                    let full = bits == 0xff;
                     let active = Mask8::from_bits(bits);
-                    let i = lane_x + f32x8::splat(px as f32);
-                    let j = lane_y + f32x8::splat((first_row as usize + py) as f32);
-                    let p = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
-                    let d = p * (f32x8::splat(1.0) / p.length());
-                    let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                    let pixel = [px as u32, first_row + py as u32];
+                    let ray = camera.packet(px, row, active);
+                    let pixel = [px as u32, row as u32];
                     let c = self.trace_knobs::<ANY_HIT, EPS, GLASS>(
                         &ray,
                         active,
@@ -1045,6 +1027,63 @@ impl PacketRenderer {
             stats.quadric_tests += steps.quadrics;
             stats
         })
+    }
+}
+
+/// The camera packets of a frame: 4 × 2 pixels through their centres on the frame's
+/// pixel grid, in the renderer's f32 frame (the plain and the supersampled frame loop).
+pub(crate) struct CameraPackets {
+    eye: Vec3,
+    top_left: Vec3,
+    du: Vec3,
+    dv: Vec3,
+}
+
+impl CameraPackets {
+    /// The packets of `grid` in the frame centred on `base`.
+    pub(crate) fn new(grid: &PixelGrid, base: DVec3) -> CameraPackets {
+        CameraPackets {
+            eye: (grid.eye - base).as_vec3(),
+            top_left: (grid.top_left - grid.eye).as_vec3(),
+            du: grid.du.as_vec3(),
+            dv: grid.dv.as_vec3(),
+        }
+    }
+
+    /// The lane bits of the packet at column `x`, row `y` of a band of `rows` rows and
+    /// `width` columns whose row `y` is the image's row `image_row` (of `height`): the
+    /// lanes on pixels of both.
+    #[inline]
+    pub(crate) fn lanes(
+        x: usize,
+        y: usize,
+        width: usize,
+        rows: usize,
+        image_row: usize,
+        height: usize,
+    ) -> u32 {
+        let inside = |lane: usize| {
+            let (dx, dy) = (lane % 4, lane / 4);
+            x + dx < width && y + dy < rows && image_row + dy < height
+        };
+        if inside(7) {
+            0xff
+        } else {
+            (0..8).filter(|&l| inside(l)).fold(0, |b, l| b | 1 << l)
+        }
+    }
+
+    /// The packet whose lane 0 is the pixel at column `x` of image row `row`.
+    #[inline]
+    pub(crate) fn packet(&self, x: usize, row: usize, active: Mask8) -> RayPacket8 {
+        let lane_x = f32x8::new([0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0]);
+        let lane_y = f32x8::new([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+        let i = lane_x + f32x8::splat(x as f32);
+        let j = lane_y + f32x8::splat(row as f32);
+        let p =
+            Vec3x8::splat(self.top_left) + Vec3x8::splat(self.du) * i + Vec3x8::splat(self.dv) * j;
+        let d = p * (f32x8::splat(1.0) / p.length());
+        RayPacket8::new(Vec3x8::splat(self.eye), d, active)
     }
 }
 

@@ -19,17 +19,16 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::DVec3;
-use wide::f32x8;
 
 use super::caustic::CausticSettings;
 use super::frame::render_bands;
-use super::packet::{BAND_ROWS, PacketRenderer};
+use super::packet::{BAND_ROWS, CameraPackets, PacketRenderer};
 use super::profile::{Profile, RayOffset, RenderPath, TriangleTest};
 use super::reference::Reference;
 use super::{RenderSettings, RenderStats, Rendered};
 use crate::bvh::Steps;
 use crate::math::Ray;
-use crate::math::packet::{Mask8, RayPacket8, Vec3x8};
+use crate::math::packet::Mask8;
 use crate::output::Framebuffer;
 use crate::output::framebuffer::quantize;
 use crate::scene::Scene;
@@ -202,13 +201,9 @@ fn packet_supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
 ) -> Rendered {
     let (big_w, big_h) = (settings.width * n, settings.height * n);
     let grid = settings.camera.pixel_grid(big_w, big_h);
-    let eye = (grid.eye - p.base()).as_vec3();
-    let tl = (grid.top_left - grid.eye).as_vec3();
-    let (du, dv) = (grid.du.as_vec3(), grid.dv.as_vec3());
+    let camera = CameraPackets::new(&grid, p.base());
     let width = settings.width as usize;
     let (bw, nn) = (big_w as usize, n as usize);
-    let lane_x = f32x8::new([0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0]);
-    let lane_y = f32x8::new([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
     let inv = 1.0 / (n * n) as f32;
     render_bands(settings, BAND_ROWS, |first_row, pixels| {
         let mut stats = RenderStats::default();
@@ -220,20 +215,11 @@ fn packet_supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
         let mut sum = vec![[0.0f32; 3]; pixels.len()];
         for py in (0..big_rows).step_by(2) {
             for px in (0..bw).step_by(4) {
-                let mut bits = 0u32;
-                for lane in 0..8 {
-                    let (x, y) = (px + lane % 4, py + lane / 4);
-                    if x < bw && y < big_rows && big_first + y < big_h as usize {
-                        bits |= 1 << lane;
-                    }
-                }
+                let row = big_first + py;
+                let bits = CameraPackets::lanes(px, py, bw, big_rows, row, big_h as usize);
                 let active = Mask8::from_bits(bits);
-                let i = lane_x + f32x8::splat(px as f32);
-                let j = lane_y + f32x8::splat((big_first + py) as f32);
-                let q = Vec3x8::splat(tl) + Vec3x8::splat(du) * i + Vec3x8::splat(dv) * j;
-                let d = q * (f32x8::splat(1.0) / q.length());
-                let ray = RayPacket8::new(Vec3x8::splat(eye), d, active);
-                let pixel = [px as u32, (big_first + py) as u32];
+                let ray = camera.packet(px, row, active);
+                let pixel = [px as u32, row as u32];
                 let c = p.trace_knobs::<ANY_HIT, EPS, GLASS>(
                     &ray,
                     active,
