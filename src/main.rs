@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
-use octaray::output::{check_output, write_image, write_next_output};
+use octaray::output::{check_output, check_output_dir, write_image, write_next_output};
 use octaray::render::RenderSettings;
 use octaray::render::profile::Profile;
 use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
@@ -298,8 +298,15 @@ fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
 
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     // where the image goes, before the render's time is spent
-    if let Some(path) = &args.output {
-        check_output(path, true).map_err(|e| Failure::input(format!("--output: {e}")))?;
+    match &args.output {
+        Some(path) => {
+            check_output(path, true).map_err(|e| Failure::input(format!("--output: {e}")))?
+        }
+        None => check_output_dir(Path::new(".")).map_err(|e| {
+            Failure::input(format!(
+                "cannot write the image in the current directory: {e}"
+            ))
+        })?,
     }
     let (parsed, name) = load(args.scene.as_deref())?;
     if let (None, Some(e)) = (args.size, &parsed.too_large) {
@@ -398,8 +405,16 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
 /// a pool that cannot start then (a process limit) is an error, not a panic in the
 /// first parallel loop. (Without `--threads` rayon starts its pool itself, lazily.)
 fn start(threads: Option<u32>) -> Result<(), Failure> {
-    // (a second handler cannot be set; one is enough)
-    let _ = ctrlc::set_handler(|| octaray::output::remove_temporaries_and_exit(130));
+    // (a second handler cannot be set; one is enough). The handler runs on a thread of
+    // its own, started after the signals are caught: where no thread can start (a
+    // process limit), the signals would be caught with nothing behind them, and the
+    // process would ignore Ctrl-C. There, the default action stays (stop at once).
+    let can_spawn = std::thread::Builder::new()
+        .spawn(|| ())
+        .is_ok_and(|t| t.join().is_ok());
+    if can_spawn {
+        let _ = ctrlc::set_handler(|| octaray::output::remove_temporaries_and_exit(130));
+    }
     // Without `--threads` rayon starts its pool at the first parallel loop, after the
     // scene is read: started here, its idle workers spun through the serial start
     // and cost the given scene 3-4 % of its whole-process time.
@@ -429,7 +444,7 @@ fn main() -> ExitCode {
             ..RenderArgs::default()
         }),
     });
-    if octaray::render::frame::serial() {
+    if result.is_ok() && threads != Some(1) && octaray::render::frame::serial() {
         say!(
             "octaray: warning: worker threads could not start (a process limit?); ran on one thread"
         );

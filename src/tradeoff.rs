@@ -276,8 +276,13 @@ pub fn markdown(
     costs: &[FeatureRow],
     scene_features: &[(String, String)],
     command: &str,
+    plot: Option<&Path>,
 ) -> String {
     let mut md = String::new();
+    let plot = plot.map_or_else(
+        || "none written".to_string(),
+        |p| format!("`{}`", p.display()),
+    );
     let _ = writeln!(md, "# Speed/accuracy trade-off of the profiles\n");
     let _ = writeln!(
         md,
@@ -287,7 +292,7 @@ pub fn markdown(
          largest channel difference (1/255), % of pixels off by more than 1/255 and 8/255, and \
          the same counted outside the masks of legitimate differences (silhouettes from the \
          reference's primary-hit ids, edges where the reference jumps by more than 24/255 to a \
-         neighbour). Plot: `profiles/tradeoff.png` (PSNR against time, log scale).\n",
+         neighbour). Plot: {plot} (PSNR against time, log scale).\n",
         crate::render::frame::threads()
     );
     let table = |md: &mut String, rows: &[Row]| {
@@ -404,6 +409,14 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<String, Tradeoff
                 .map_err(|e| TradeoffError::Input(format!("{option}: {e}")))?;
         }
     }
+    if let (Some(m), Some(p)) = (&opts.markdown, &opts.plot)
+        && crate::output::same_file(m, p)
+    {
+        return Err(TradeoffError::Input(format!(
+            "--markdown and --plot name the same file: {}",
+            p.display()
+        )));
+    }
     let mut line = |r: &Row| {
         log(&format!(
             "{:<24} {:>4} {:<10} {:>9.1} ms {:>7.2} Mrays/s {:>6.1}x  PSNR {:>6}  max {:>3}  >8/255 {:>6}%  >1/255 unmasked {:>6}%",
@@ -464,7 +477,14 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<String, Tradeoff
         }
         None => Vec::new(),
     };
-    let md = markdown(&rows, &headline, &costs, &scene_features, &opts.command);
+    let md = markdown(
+        &rows,
+        &headline,
+        &costs,
+        &scene_features,
+        &opts.command,
+        opts.plot.as_deref(),
+    );
     // whole or not at all, as images (an existing file stays as it was on failure)
     if let Some(path) = &opts.markdown {
         crate::output::write_atomic(path, md.as_bytes())?;

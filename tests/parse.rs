@@ -601,8 +601,8 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
 /// Where worker threads cannot start (a process or container limit: `prlimit --nproc`,
 /// as another user when root, whom the limit does not bind), `render` without
 /// `--threads` renders on its one thread, with a warning, and writes the same image;
-/// with `--threads 2` it stops with exit 1 and says why. Rayon panicked in both
-/// (fuzz round 9).
+/// so does `--threads 1`, without one; with `--threads 2` it stops with exit 1 and
+/// says why. Rayon panicked in all three (fuzz round 9).
 #[cfg(target_os = "linux")]
 #[test]
 fn a_limit_on_threads_renders_on_one_thread() {
@@ -650,10 +650,20 @@ fn a_limit_on_threads_renders_on_one_thread() {
         std::fs::read(dir.join("limited.bmp")).unwrap(),
         std::fs::read(dir.join("free.bmp")).unwrap()
     );
+    // one thread needs no worker: the calling thread is enough
+    let out = limited(&["--threads", "1"], "one.bmp");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert_eq!(
+        std::fs::read(dir.join("one.bmp")).unwrap(),
+        std::fs::read(dir.join("free.bmp")).unwrap()
+    );
     let out = limited(&["--threads", "2"], "two.bmp");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("cannot start 2 worker threads"), "{stderr}");
+    assert!(!stderr.contains("ran on one thread"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }

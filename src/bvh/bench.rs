@@ -141,72 +141,83 @@ impl Mode {
 /// Traces every ray of `rays`, writing the hit distance (−1 for a miss) per ray.
 pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
     const CHUNK: usize = 1024;
-    t_out
-        .par_chunks_mut(CHUNK)
-        .enumerate()
-        .map(|(c, out)| {
-            let mut steps = Steps::default();
-            let base = c * CHUNK;
-            match mode {
-                Mode::Single => {
-                    for (i, t) in out.iter_mut().enumerate() {
-                        let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
-                        let mut h = Hit1::new(f32::INFINITY);
-                        bvh.intersect_1(&r, &mut h, &mut steps);
-                        *t = if h.is_hit() { h.t } else { -1.0 };
-                    }
+    let chunk = |(c, out): (usize, &mut [f32])| {
+        let mut steps = Steps::default();
+        let base = c * CHUNK;
+        match mode {
+            Mode::Single => {
+                for (i, t) in out.iter_mut().enumerate() {
+                    let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
+                    let mut h = Hit1::new(f32::INFINITY);
+                    bvh.intersect_1(&r, &mut h, &mut steps);
+                    *t = if h.is_hit() { h.t } else { -1.0 };
                 }
-                Mode::SingleBinary => {
-                    for (i, t) in out.iter_mut().enumerate() {
-                        let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
-                        let mut h = Hit1::new(f32::INFINITY);
-                        bvh.intersect_1_binary(&r, &mut h, &mut steps);
-                        *t = if h.is_hit() { h.t } else { -1.0 };
-                    }
+            }
+            Mode::SingleBinary => {
+                for (i, t) in out.iter_mut().enumerate() {
+                    let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
+                    let mut h = Hit1::new(f32::INFINITY);
+                    bvh.intersect_1_binary(&r, &mut h, &mut steps);
+                    *t = if h.is_hit() { h.t } else { -1.0 };
                 }
-                Mode::Packet8 | Mode::Packet8Binary => {
-                    for (k, ts) in out.chunks_mut(8).enumerate() {
-                        let b = base + k * 8;
-                        let n = ts.len();
-                        let active = Mask8::from_bits((1u32 << n) - 1);
-                        // a whole packet straight from the ray arrays; a short last one
-                        // padded (a `copy_from_slice` of run-time length is a memmove
-                        // call: 3.4 % of a perf profile of bench-trace primary mode=8)
-                        let p = if let (Ok(o), Ok(d)) = (
-                            <&[Vec3; 8]>::try_from(&rays.origin[b..b + n]),
-                            <&[Vec3; 8]>::try_from(&rays.dir[b..b + n]),
-                        ) {
-                            RayPacket8::new(Vec3x8::from_lanes(o), Vec3x8::from_lanes(d), active)
-                        } else {
-                            let mut o = [rays.origin[b]; 8];
-                            let mut d = [rays.dir[b]; 8];
-                            o[..n].copy_from_slice(&rays.origin[b..b + n]);
-                            d[..n].copy_from_slice(&rays.dir[b..b + n]);
-                            RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active)
-                        };
-                        let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
-                        if mode == Mode::Packet8 {
-                            bvh.intersect_x8(&p, active, &mut h, &mut steps);
-                        } else {
-                            bvh.intersect_x8_binary(&p, active, &mut h, &mut steps);
-                        }
-                        // t of the lanes that hit, −1 for the others, stored whole
-                        let t = h.hit_mask().select(h.t, f32x8::splat(-1.0)).to_array();
-                        if let Ok(ts) = <&mut [f32; 8]>::try_from(&mut *ts) {
-                            *ts = t;
-                        } else {
-                            ts.copy_from_slice(&t[..n]);
-                        }
+            }
+            Mode::Packet8 | Mode::Packet8Binary => {
+                for (k, ts) in out.chunks_mut(8).enumerate() {
+                    let b = base + k * 8;
+                    let n = ts.len();
+                    let active = Mask8::from_bits((1u32 << n) - 1);
+                    // a whole packet straight from the ray arrays; a short last one
+                    // padded (a `copy_from_slice` of run-time length is a memmove
+                    // call: 3.4 % of a perf profile of bench-trace primary mode=8)
+                    let p = if let (Ok(o), Ok(d)) = (
+                        <&[Vec3; 8]>::try_from(&rays.origin[b..b + n]),
+                        <&[Vec3; 8]>::try_from(&rays.dir[b..b + n]),
+                    ) {
+                        RayPacket8::new(Vec3x8::from_lanes(o), Vec3x8::from_lanes(d), active)
+                    } else {
+                        let mut o = [rays.origin[b]; 8];
+                        let mut d = [rays.dir[b]; 8];
+                        o[..n].copy_from_slice(&rays.origin[b..b + n]);
+                        d[..n].copy_from_slice(&rays.dir[b..b + n]);
+                        RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active)
+                    };
+                    let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
+                    if mode == Mode::Packet8 {
+                        bvh.intersect_x8(&p, active, &mut h, &mut steps);
+                    } else {
+                        bvh.intersect_x8_binary(&p, active, &mut h, &mut steps);
+                    }
+                    // t of the lanes that hit, −1 for the others, stored whole
+                    let t = h.hit_mask().select(h.t, f32x8::splat(-1.0)).to_array();
+                    if let Ok(ts) = <&mut [f32; 8]>::try_from(&mut *ts) {
+                        *ts = t;
+                    } else {
+                        ts.copy_from_slice(&t[..n]);
                     }
                 }
             }
-            steps
-        })
-        .reduce(Steps::default, |a, b| Steps {
-            boxes: a.boxes + b.boxes,
-            prims: a.prims + b.prims,
-            quadrics: a.quadrics + b.quadrics,
-        })
+        }
+        steps
+    };
+    let add = |a: Steps, b: Steps| Steps {
+        boxes: a.boxes + b.boxes,
+        prims: a.prims + b.prims,
+        quadrics: a.quadrics + b.quadrics,
+    };
+    // (on the calling thread where worker threads cannot start)
+    if crate::render::frame::parallel() {
+        t_out
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(chunk)
+            .reduce(Steps::default, add)
+    } else {
+        t_out
+            .chunks_mut(CHUNK)
+            .enumerate()
+            .map(chunk)
+            .fold(Steps::default(), add)
+    }
 }
 
 /// One line of results, in the Embree harness's fields.

@@ -56,17 +56,52 @@ pub fn check_output(path: &Path, image: bool) -> Result<(), OutputError> {
     if path.is_dir() {
         return Err(io("is a directory"));
     }
+    let text = path.as_os_str().to_string_lossy();
+    if text.ends_with('/') || text.ends_with("/.") {
+        return Err(io("names a directory (ends with /)"));
+    }
+    if path.file_name().is_some_and(|n| n.len() > NAME_MAX) {
+        return Err(io("file name too long (at most 255 bytes)"));
+    }
     let target = write_target(path)?;
     let dir = target.parent().filter(|p| !p.as_os_str().is_empty());
     if dir.is_some_and(|d| !d.is_dir()) {
         return Err(io("no such directory"));
     }
-    // a temporary file can be made beside it (a directory without write permission,
-    // a read-only file system)
-    let probe = write_temp_bytes(&target, b"", None).map_err(|e| named(e, path))?;
+    check_dir(&target).map_err(|e| named(e, path))
+}
+
+/// The longest file name most file systems take (bytes).
+const NAME_MAX: usize = 255;
+
+/// Whether a file can be made beside `path` (a directory without write permission,
+/// a read-only file system): one is, and removed.
+fn check_dir(path: &Path) -> Result<(), OutputError> {
+    let probe = write_temp_bytes(path, b"", None)?;
     let _ = fs::remove_file(&probe);
     forget_temp(&probe);
     Ok(())
+}
+
+/// What can be known before any work about writing the next free `Output_1N.bmp` in
+/// `dir` ([`write_next_output`]): that a file can be made there.
+pub fn check_output_dir(dir: &Path) -> Result<(), OutputError> {
+    check_dir(&dir.join(output_name(1)))
+}
+
+/// Whether `a` and `b` name the same file once written (through symbolic links, from
+/// any directory): two outputs of one command must not.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let resolve = |p: &Path| {
+        let p = fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+        let dir = dir.map_or_else(|| fs::canonicalize("."), fs::canonicalize);
+        match (dir, p.file_name()) {
+            (Ok(d), Some(n)) => d.join(n),
+            _ => p,
+        }
+    };
+    resolve(a) == resolve(b)
 }
 
 /// `e` reported under the name the user gave (not the file a link led to).
@@ -140,15 +175,16 @@ pub fn remove_temporaries_and_exit(code: i32) -> ! {
     std::process::exit(code)
 }
 
-/// Writes `bytes` to a fresh temporary file beside `path`, with permissions `mode` if
-/// given (set before the bytes are written), and returns its path. Short
+/// Writes `bytes` to a fresh temporary file beside `path`, taking the permissions and
+/// (where this process may set them, as root) the owner and group of `like`, the file
+/// it replaces, before the bytes are written; returns its path. Short
 /// name (a long target name plus a suffix would pass the 255-byte limit), created
 /// exclusively (never truncating or following another process's file: two processes
 /// of the same PID, in two containers sharing a directory, take different names).
 fn write_temp_bytes(
     path: &Path,
     bytes: &[u8],
-    mode: Option<fs::Permissions>,
+    like: Option<&fs::Metadata>,
 ) -> Result<PathBuf, OutputError> {
     static COUNT: AtomicU32 = AtomicU32::new(0);
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
@@ -172,9 +208,14 @@ fn write_temp_bytes(
         };
         list.push(tmp.clone());
         drop(list);
-        if let Some(mode) = mode {
-            // (best effort: the mode bits this user may set)
-            let _ = file.set_permissions(mode);
+        if let Some(like) = like {
+            // (best effort: the mode bits and owner this user may set)
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::MetadataExt;
+                let _ = std::os::unix::fs::fchown(&file, Some(like.uid()), Some(like.gid()));
+            }
+            let _ = file.set_permissions(like.permissions());
         }
         return match io::Write::write_all(&mut file, bytes) {
             Ok(()) => Ok(tmp),
@@ -220,8 +261,8 @@ fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
 /// or left as it was; a symbolic link is written through, [`write_target`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let target = write_target(path)?;
-    let mode = fs::metadata(&target).ok().map(|m| m.permissions());
-    let tmp = write_temp_bytes(&target, bytes, mode).map_err(|e| named(e, path))?;
+    let like = fs::metadata(&target).ok();
+    let tmp = write_temp_bytes(&target, bytes, like.as_ref()).map_err(|e| named(e, path))?;
     let renamed = fs::rename(&tmp, &target);
     if renamed.is_err() {
         let _ = fs::remove_file(&tmp);
@@ -364,6 +405,16 @@ mod tests {
             Err(OutputError::Extension { .. })
         ));
         assert!(check_output(&dir.join("missing/a.bmp"), true).is_err());
+        // names the rename would refuse only after the render (fuzz round 10)
+        let text = dir.display().to_string();
+        for bad in [format!("{text}/a.bmp/"), format!("{text}/a.bmp/.")] {
+            assert!(check_output(Path::new(&bad), true).is_err(), "{bad}");
+        }
+        let long = dir.join(format!("{}.bmp", "n".repeat(252)));
+        assert!(check_output(&long, true).is_err());
+        assert!(check_output(&dir.join(format!("{}.bmp", "n".repeat(251))), true).is_ok());
+        assert!(check_output_dir(&dir).is_ok());
+        assert!(check_output_dir(&dir.join("missing")).is_err());
         fs::create_dir_all(dir.join("d.bmp")).unwrap();
         assert!(check_output(&dir.join("d.bmp"), true).is_err());
     }
@@ -437,6 +488,20 @@ mod tests {
             assert_eq!(mode(&locked), 0o444);
         }
         assert_eq!(temporaries_in(&dir), 0);
+    }
+
+    /// Two outputs name the same file through `..`, a symbolic link or not at all.
+    #[cfg(unix)]
+    #[test]
+    fn same_files_are_told_apart() {
+        let dir = tempfile_dir("same");
+        fs::create_dir_all(dir.join("sub")).unwrap();
+        let a = dir.join("a.png");
+        assert!(same_file(&a, &dir.join("sub/../a.png")));
+        std::os::unix::fs::symlink(&a, dir.join("link.png")).unwrap();
+        fs::write(&a, b"x").unwrap();
+        assert!(same_file(&dir.join("link.png"), &a));
+        assert!(!same_file(&a, &dir.join("b.png")));
     }
 
     /// Temporary files left behind in `dir` (their names start with a dot).

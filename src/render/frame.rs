@@ -74,13 +74,14 @@ pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Sen
 static POOL: OnceLock<bool> = OnceLock::new();
 
 /// Starts rayon's global pool with `threads` workers (the command line's `--threads`),
-/// before any parallel loop.
+/// before any parallel loop. One thread needs no worker: should it not start, the
+/// parallel loops run on the calling thread.
 pub fn start_pool(threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
     let started = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global();
     let _ = POOL.set(started.is_ok());
-    started
+    if threads == 1 { Ok(()) } else { started }
 }
 
 /// Whether a parallel loop may run on rayon's pools: on a worker of one, or when the
