@@ -667,3 +667,59 @@ fn a_limit_on_threads_renders_on_one_thread() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `-o` onto a file that may be written but not replaced (another user's file in a
+/// sticky directory; a bind-mounted file behaves alike): the image is written in place
+/// and the file stays its owner's (fuzz round 10: exit 1 after the render). Needs two
+/// users, so runs as root (CI), the render as `nobody`.
+#[cfg(target_os = "linux")]
+#[test]
+fn files_that_cannot_be_replaced_are_written_in_place() {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    if Command::new("id").arg("-u").output().unwrap().stdout != b"0\n" {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("octaray-sticky-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    let exe = dir.join("octaray");
+    std::fs::copy(env!("CARGO_BIN_EXE_octaray"), &exe).unwrap();
+    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let free = dir.join("free.bmp");
+    let out = Command::new(&exe)
+        .args(["render", "--size", "16", "-o"])
+        .arg(&free)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let target = dir.join("shared.bmp");
+    std::fs::write(&target, b"old").unwrap();
+    std::fs::set_permissions(&target, std::fs::Permissions::from_mode(0o666)).unwrap();
+    let out = Command::new("setpriv")
+        .args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+        .arg(&exe)
+        .args(["render", "--size", "16", "-o"])
+        .arg(&target)
+        .output()
+        .expect("setpriv (util-linux) runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert_eq!(
+        std::fs::read(&target).unwrap(),
+        std::fs::read(&free).unwrap()
+    );
+    assert_eq!(std::fs::metadata(&target).unwrap().uid(), 0);
+    let leftovers = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with('.')
+        })
+        .count();
+    assert_eq!(leftovers, 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -263,9 +263,25 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let target = write_target(path)?;
     let like = fs::metadata(&target).ok();
     let tmp = write_temp_bytes(&target, bytes, like.as_ref()).map_err(|e| named(e, path))?;
-    let renamed = fs::rename(&tmp, &target);
+    let mut renamed = fs::rename(&tmp, &target);
     if renamed.is_err() {
         let _ = fs::remove_file(&tmp);
+        // A file that may be written but not replaced: a bind mount (a container's
+        // `-v out.bmp:/out.bmp`, EBUSY) or another user's file in a sticky directory
+        // (EPERM). Written in place, as `cp` writes, whole but not atomically.
+        if let (Some(like), Err(e)) = (&like, &renamed)
+            && like.is_file()
+            && matches!(
+                e.kind(),
+                io::ErrorKind::ResourceBusy | io::ErrorKind::PermissionDenied
+            )
+        {
+            renamed = fs::OpenOptions::new()
+                .write(true)
+                .truncate(true)
+                .open(&target)
+                .and_then(|mut f| io::Write::write_all(&mut f, bytes));
+        }
     }
     forget_temp(&tmp);
     renamed.map_err(|source| OutputError::Io {
