@@ -1,9 +1,9 @@
-//! In-process frame times of the packet path: renders a scene N times on one thread
-//! (the renderer built once, as the viewer does) and prints the best and median.
+//! In-process frame times of the packet path: renders a scene N times on one thread, or
+//! on THREADS (the renderer built once, as the viewer does) and prints the best and median.
 //! A steadier figure than whole-process timings on a shared machine, and what
 //! `valgrind --tool=callgrind` runs to count instructions per frame (benches/README.md).
 //!
-//! `cargo run --release --example frame_times -- SCENE [RUNS=20] [SIZE=768]`
+//! `cargo run --release --example frame_times -- SCENE [RUNS=20] [SIZE=768] [THREADS=1]`
 
 use octaray::render::RenderSettings;
 use octaray::render::packet::PacketRenderer;
@@ -11,7 +11,7 @@ use octaray::render::packet::PacketRenderer;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let Some(path) = args.get(1) else {
-        eprintln!("usage: frame_times SCENE [RUNS] [SIZE]");
+        eprintln!("usage: frame_times SCENE [RUNS] [SIZE] [THREADS]");
         std::process::exit(2);
     };
     let number = |i: usize, default: u32| {
@@ -23,6 +23,7 @@ fn main() {
         })
     };
     let (runs, size) = (number(2, 20).max(1) as usize, number(3, 768).max(1));
+    let threads = number(4, 1).max(1) as usize;
     let scene = match octaray::scene::parse::parse_scene_file(std::path::Path::new(path)) {
         Ok(parsed) => parsed.scene,
         Err(e) => {
@@ -31,10 +32,10 @@ fn main() {
         }
     };
     let mut settings = RenderSettings::square(size);
-    settings.threads = Some(1);
+    settings.threads = Some(threads);
     let renderer = PacketRenderer::new(&scene, settings.camera.eye);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
+        .num_threads(threads)
         .use_current_thread()
         .build()
         .expect("a pool on the current thread");
@@ -46,9 +47,10 @@ fn main() {
             start.elapsed().as_secs_f64() * 1e3
         })
         .collect();
+    let first = times[0];
     times.sort_by(f64::total_cmp);
     println!(
-        "{path} {size}x{size}, 1 thread, {runs} frames: best {:.2} ms, median {:.2} ms",
+        "{path} {size}x{size}, {threads} thread(s), {runs} frames: best {:.2} ms, median {:.2} ms, first {first:.2} ms",
         times[0],
         times[runs / 2]
     );

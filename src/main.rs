@@ -399,22 +399,14 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
     })
 }
 
-/// Makes an interrupted run (SIGINT, SIGTERM, SIGHUP: exit code 130) remove its
-/// temporary files, and with `--threads` sizes rayon's global pool, so that the
-/// option bounds every parallel part (the frame, the photon pass, the image encoder);
-/// a pool that cannot start then (a process limit) is an error, not a panic in the
-/// first parallel loop. (Without `--threads` rayon starts its pool itself, lazily.)
+/// Makes an interrupted run (SIGINT, SIGTERM, SIGHUP) remove its temporary files and
+/// then end by that signal, as if it had not been caught (a shell shows 130 for
+/// Ctrl-C, 143 for SIGTERM), and with `--threads` sizes rayon's global pool, so that
+/// the option bounds every parallel part (the frame, the photon pass, the image
+/// encoder); a pool that cannot start then (a process limit) is an error, not a panic
+/// in the first parallel loop. (Without `--threads` rayon starts its pool itself, lazily.)
 fn start(threads: Option<u32>) -> Result<(), Failure> {
-    // (a second handler cannot be set; one is enough). The handler runs on a thread of
-    // its own, started after the signals are caught: where no thread can start (a
-    // process limit), the signals would be caught with nothing behind them, and the
-    // process would ignore Ctrl-C. There, the default action stays (stop at once).
-    let can_spawn = std::thread::Builder::new()
-        .spawn(|| ())
-        .is_ok_and(|t| t.join().is_ok());
-    if can_spawn {
-        let _ = ctrlc::set_handler(|| octaray::output::remove_temporaries_and_exit(130));
-    }
+    catch_interrupts();
     // Without `--threads` rayon starts its pool at the first parallel loop, after the
     // scene is read: started here, its idle workers spun through the serial start
     // and cost the given scene 3-4 % of its whole-process time.
@@ -424,6 +416,53 @@ fn start(threads: Option<u32>) -> Result<(), Failure> {
         code: 1,
         message: format!("cannot start {n} worker threads: {e}"),
     })
+}
+
+/// Catches SIGINT, SIGTERM and SIGHUP on a thread of its own, which removes the
+/// temporary files and then ends the process by the same signal. The signals are
+/// caught only once that thread runs: where no thread can start (a process limit),
+/// they would be caught with nothing behind them and the process would ignore
+/// Ctrl-C, so there the default action stays (stop at once, no clean-up).
+fn catch_interrupts() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let (send, receive) = std::sync::mpsc::channel::<signal_hook::iterator::Signals>();
+    let watcher = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            let Ok(mut signals) = receive.recv() else {
+                return;
+            };
+            if let Some(signal) = signals.forever().next() {
+                let _held = octaray::output::remove_temporaries();
+                // the default action of these signals ends the process here
+                let _ = signal_hook::low_level::emulate_default_handler(signal);
+                std::process::exit(128 + signal);
+            }
+        });
+    // a signal ignored by whoever started the process (`nohup`, a shell's background
+    // job) stays ignored
+    let ignored = ignored_signals();
+    let caught = [SIGINT, SIGTERM, SIGHUP]
+        .into_iter()
+        .filter(|s| !ignored(*s));
+    if watcher.is_ok()
+        && let Ok(signals) = signal_hook::iterator::Signals::new(caught)
+    {
+        let _ = send.send(signals);
+    }
+}
+
+/// Which signals this process was started ignoring: the `SigIgn` mask of
+/// `/proc/self/status` (Linux; elsewhere none are taken as ignored).
+fn ignored_signals() -> impl Fn(i32) -> bool {
+    let mask = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let line = status.lines().find_map(|l| l.strip_prefix("SigIgn:"))?;
+            u64::from_str_radix(line.trim(), 16).ok()
+        })
+        .unwrap_or(0);
+    move |signal| (1..=64).contains(&signal) && mask & (1 << (signal - 1)) != 0
 }
 
 fn main() -> ExitCode {

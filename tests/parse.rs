@@ -723,3 +723,116 @@ fn files_that_cannot_be_replaced_are_written_in_place() {
     assert_eq!(leftovers, 0);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The bits of a signal mask (`SigCgt`: caught, `SigIgn`: ignored) of a running process.
+#[cfg(target_os = "linux")]
+fn signal_mask(pid: u32, field: &str) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(field))
+        .and_then(|v| u64::from_str_radix(v.trim(), 16).ok())
+        .unwrap_or(0)
+}
+
+/// Waits (up to 20 s) until process `pid` catches `signal`: its handler is installed.
+#[cfg(target_os = "linux")]
+fn wait_until_caught(pid: u32, signal: u32) {
+    let start = std::time::Instant::now();
+    while signal_mask(pid, "SigCgt:") & (1 << (signal - 1)) == 0 {
+        assert!(
+            start.elapsed().as_secs() < 20,
+            "pid {pid} never caught {signal}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+/// An interrupted render (SIGINT, SIGTERM, SIGHUP) removes its temporary files and ends
+/// by the same signal, as if it had not been caught (a shell shows 130, 143, 129: the
+/// `ctrlc` handler used to exit 130 for all three); a signal the process was started
+/// ignoring (`nohup`) stays ignored (the old handler caught SIGHUP regardless).
+#[cfg(target_os = "linux")]
+#[test]
+fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let dir = std::env::temp_dir().join(format!("octaray-signals-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exe = env!("CARGO_BIN_EXE_octaray");
+    // (a render of seconds, ended within milliseconds of its start)
+    let slow = [
+        "render",
+        "--profile",
+        "reference",
+        "--size",
+        "3000",
+        "--threads",
+        "1",
+    ];
+    for (name, signal) in [("INT", 2), ("TERM", 15), ("HUP", 1)] {
+        let mut child = Command::new(exe)
+            .args(slow)
+            .arg("-o")
+            .arg(dir.join("x.bmp"))
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        wait_until_caught(child.id(), signal);
+        let sent = Command::new("kill")
+            .arg(format!("-{name}"))
+            .arg(child.id().to_string())
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let status = child.wait().unwrap();
+        assert_eq!(
+            status.signal(),
+            Some(signal as i32),
+            "SIG{name}: {status:?}"
+        );
+        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+        assert!(left.is_empty(), "SIG{name} left {left:?}");
+    }
+    // started by nohup: SIGHUP is ignored, the render goes on and writes its image
+    let kept = dir.join("kept.bmp");
+    let mut child = Command::new("nohup")
+        .arg(exe)
+        .args([
+            "render",
+            "--profile",
+            "reference",
+            "--size",
+            "600",
+            "--threads",
+            "1",
+        ])
+        .arg("-o")
+        .arg(&kept)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("nohup (coreutils) runs");
+    // nohup execs octaray: once SIGTERM is caught, octaray's start-up is done
+    wait_until_caught(child.id(), 15);
+    assert_ne!(
+        signal_mask(child.id(), "SigIgn:") & 1,
+        0,
+        "nohup ignores SIGHUP"
+    );
+    assert_eq!(
+        signal_mask(child.id(), "SigCgt:") & 1,
+        0,
+        "SIGHUP is not caught"
+    );
+    let sent = Command::new("kill")
+        .args(["-HUP", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    assert!(kept.is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+}

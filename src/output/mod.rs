@@ -6,6 +6,6 @@ pub mod write;
 
 pub use framebuffer::Framebuffer;
 pub use write::{
-    OutputError, check_output, check_output_dir, next_free_output, remove_temporaries_and_exit,
-    same_file, write_atomic, write_image, write_image_no_clobber, write_next_output,
+    OutputError, check_output, check_output_dir, next_free_output, remove_temporaries, same_file,
+    write_atomic, write_image, write_image_no_clobber, write_next_output,
 };

@@ -159,20 +159,19 @@ fn write_target(path: &Path) -> Result<PathBuf, OutputError> {
     Ok(target)
 }
 
-/// Temporary files being written, removed by [`remove_temporaries_and_exit`] should
+/// Temporary files being written, removed by [`remove_temporaries`] should
 /// the process be interrupted (a signal handler calls it).
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Removes the temporary files still being written and exits with `code`, holding the
-/// list's lock to the end so that no new temporary file appears meanwhile.
-pub fn remove_temporaries_and_exit(code: i32) -> ! {
-    let list = TEMPORARIES.lock();
-    if let Ok(list) = &list {
-        for p in list.iter() {
-            let _ = fs::remove_file(p);
-        }
+/// Removes the temporary files still being written, for a process about to end (a
+/// signal's handler). The returned lock keeps any new temporary file from appearing:
+/// end the process while holding it.
+pub fn remove_temporaries() -> impl Sized {
+    let list = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+    for p in list.iter() {
+        let _ = fs::remove_file(p);
     }
-    std::process::exit(code)
+    list
 }
 
 /// Writes `bytes` to a fresh temporary file beside `path`, taking the permissions and
