@@ -325,7 +325,9 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         progress: true,
     };
     let profile = load_profile("--profile", &args.profile)?;
-    let rendered = profile.render(&scene, &settings);
+    let prepared = profile.prepare(&scene);
+    let rendered = prepared.render(&settings);
+    warn_f32_detail(&scene, &prepared);
     let written = match &args.output {
         Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
         None => write_next_output(&rendered.image, Path::new(".")),
@@ -354,6 +356,14 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         written.display()
     );
     Ok(())
+}
+
+/// The warning where the packet path's f32 loses the scene's smallest object (issue 5:
+/// where the fast path cannot hold, say so and name the profile that does).
+fn warn_f32_detail(scene: &octaray::scene::Scene, prepared: &octaray::render::prepared::Prepared) {
+    if let Some(d) = prepared.detail_below_f32() {
+        say!("{}", d.warning(scene, &prepared.profile().name));
+    }
 }
 
 fn run_view(args: &ViewArgs) -> Result<(), Failure> {

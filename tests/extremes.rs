@@ -341,6 +341,50 @@ fn scaled_and_translated_scenes_render_the_same_picture() {
     }
 }
 
+// ----------------------------------------- 7b. detail below f32 precision: a warning
+
+/// The given scene scaled about the eye down to 1e-7: its objects shrink towards the
+/// camera while the floor (fixed) stays 50 below, so shadow and mirror rays cross 50
+/// units to meet objects millionths across. f32 cannot hold that (the reference can);
+/// the packet path must then say so. Pass: wherever `fast` puts more than 1 % of the
+/// pixels off by more than 8/255 (its bound in profiles/fast.toml) the warning is
+/// raised, and it is not raised at scales where `fast` holds (1e4 down to 3e-6).
+#[test]
+fn detail_below_f32_precision_is_flagged() {
+    let base = Scene::given();
+    let cam = Camera::default();
+    let size = 128;
+    let fast = Profile::by_name("fast").unwrap();
+    for s in [1e4, 1.0, 1e-4, 3e-6, 1e-6, 1e-7] {
+        let t = transformed(&base, cam.eye, s, DVec3::ZERO);
+        let reference = render("reference", &t, cam, size);
+        let prepared = fast.prepare(&t);
+        let img = prepared.render(&settings(&t, cam, size)).image;
+        let d = compare(&reference, &img, &reference_ids(&t, &cam, size));
+        let detail = prepared.smallest_detail().expect("bounded objects");
+        let off8 = d.percent(d.off8);
+        println!(
+            "scale {s:e}: smallest {} {:.2e} in {:.2e} (ratio {:.1e}), warned {}, psnr {:.1} dB, off>8 {off8:.2} %",
+            t.object_name(detail.object as usize),
+            detail.size,
+            detail.extent,
+            detail.size / detail.extent,
+            detail.below_f32(),
+            d.psnr_db
+        );
+        assert_eq!(
+            prepared.detail_below_f32(),
+            detail.below_f32().then_some(detail)
+        );
+        if off8 > 1.0 {
+            assert!(detail.below_f32(), "scale {s:e}: {off8} % off, no warning");
+        }
+        if s >= 3e-6 {
+            assert!(!detail.below_f32(), "scale {s:e}: warned, {off8} % off");
+        }
+    }
+}
+
 // ----------------------------------------- 7c. finite numbers beyond f32's range
 
 #[test]

@@ -4,11 +4,13 @@
 //! - [`reference`]: f64, one ray at a time, every object tested. The oracle.
 //! - [`packet`]: f32, 8-ray packets through a BVH. The fast path and the default.
 //! - [`frame`]: splits a frame into bands of rows over rayon.
+//! - [`precision`]: where the packet path's f32 stops resolving a scene.
 
 pub mod caustic;
 pub mod diff;
 pub mod frame;
 pub mod packet;
+pub mod precision;
 pub mod prepared;
 pub mod profile;
 pub mod reference;

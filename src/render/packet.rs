@@ -786,6 +786,12 @@ impl PacketRenderer {
         })
     }
 
+    /// The smallest object this renderer traces against the extent of the scene, for
+    /// the warning where f32 loses it ([`super::precision`]).
+    pub fn smallest_detail(&self) -> Option<super::precision::Detail> {
+        super::precision::smallest_detail(&self.bvh.prims, self.lights.iter().map(|l| l.position))
+    }
+
     /// The colours seen along a packet of camera rays (traced at level 1), each
     /// channel in [0, 1]; lanes outside `active` are black. Should a ray meet glass,
     /// lane k takes the wavelengths of pixel (k % 4, k / 4).

@@ -88,6 +88,21 @@ impl<'a> Prepared<'a> {
         }
     }
 
+    /// On the packet path, once a frame has built its renderer: the scene's smallest
+    /// object against its extent ([`super::precision`]).
+    pub fn smallest_detail(&self) -> Option<super::precision::Detail> {
+        let Engine::Packet(cell) = &self.engine else {
+            return None;
+        };
+        cell.get()?.smallest_detail()
+    }
+
+    /// [`Prepared::smallest_detail`] where f32 loses it
+    /// ([`super::precision::Detail::below_f32`]): the command line warns.
+    pub fn detail_below_f32(&self) -> Option<super::precision::Detail> {
+        self.smallest_detail().filter(|d| d.below_f32())
+    }
+
     fn packet(&self, eye: DVec3) -> &PacketRenderer {
         let Engine::Packet(cell) = &self.engine else {
             unreachable!("packet() on the reference engine")

@@ -254,6 +254,24 @@ impl Scene {
     /// The scene handed out with the assignment, compiled into the binary.
     pub const GIVEN: &'static str = include_str!("../../scenes/given.txt");
 
+    /// Object `index` (0-based) as messages name it: its keyword and its number among
+    /// the objects of that kind in the file ("sphere 2": the file's second sphere).
+    pub fn object_name(&self, index: usize) -> String {
+        let keyword = |s: &Shape| match s {
+            Shape::Sphere { .. } => "sphere",
+            Shape::Triangle { .. } => "triangle",
+            Shape::Quadric(_) => "general",
+            Shape::Prism { .. } => "prism",
+            Shape::Mesh(_) => "mesh",
+        };
+        let kind = keyword(&self.objects[index].shape);
+        let n = self.objects[..=index]
+            .iter()
+            .filter(|o| keyword(&o.shape) == kind)
+            .count();
+        format!("{kind} {n}")
+    }
+
     /// Parses [`Scene::GIVEN`].
     pub fn given() -> Scene {
         parse_scene(Self::GIVEN, "scenes/given.txt")

@@ -309,11 +309,19 @@ fn spawn_render_worker(
             // per-scene data (BVH, photon map) once, not per frame
             let still = profile.prepare(&scene);
             let moving = moving_profile.prepare(&scene);
+            let mut checked = false;
             for job in job_rx {
                 let prepared = if job.divisor > 1 { &moving } else { &still };
                 if frame_tx.send(render_job(prepared, &job)).is_err() {
                     break;
                 }
+                // once, after the first frame has built the packet renderer
+                if !checked && let Some(d) = prepared.detail_below_f32() {
+                    use std::io::Write as _;
+                    let name = &prepared.profile().name;
+                    let _ = writeln!(std::io::stderr(), "{}", d.warning(&scene, name));
+                }
+                checked = true;
             }
         })
         .map_err(|e| ViewerError::Thread("render", e))?;
