@@ -364,11 +364,11 @@ fn detail_below_f32_precision_is_flagged() {
         let detail = prepared.smallest_detail().expect("bounded objects");
         let off8 = d.percent(d.off8);
         println!(
-            "scale {s:e}: smallest {} {:.2e} in {:.2e} (ratio {:.1e}), warned {}, psnr {:.1} dB, off>8 {off8:.2} %",
+            "scale {s:e}: smallest {} {:.2e} at {:.2e} (ratio {:.1e}), warned {}, psnr {:.1} dB, off>8 {off8:.2} %",
             t.object_name(detail.object as usize),
             detail.size,
-            detail.extent,
-            detail.size / detail.extent,
+            detail.distance,
+            detail.size / detail.distance,
             detail.below_f32(),
             d.psnr_db
         );

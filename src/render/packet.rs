@@ -786,10 +786,10 @@ impl PacketRenderer {
         })
     }
 
-    /// The smallest object this renderer traces against the extent of the scene, for
-    /// the warning where f32 loses it ([`super::precision`]).
+    /// The object this renderer traces that is smallest against its distance, for the
+    /// warning where f32 loses it ([`super::precision`]).
     pub fn smallest_detail(&self) -> Option<super::precision::Detail> {
-        super::precision::smallest_detail(&self.bvh.prims, self.lights.iter().map(|l| l.position))
+        super::precision::smallest_detail(&self.bvh.prims)
     }
 
     /// The colours seen along a packet of camera rays (traced at level 1), each

@@ -89,7 +89,7 @@ impl<'a> Prepared<'a> {
     }
 
     /// On the packet path, once a frame has built its renderer: the scene's smallest
-    /// object against its extent ([`super::precision`]).
+    /// object against its distance ([`super::precision`]).
     pub fn smallest_detail(&self) -> Option<super::precision::Detail> {
         let Engine::Packet(cell) = &self.engine else {
             return None;
