@@ -7,6 +7,15 @@ use std::process::Command;
 use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes, parse_scene_file};
 use octaray::scene::{Scene, Shape};
 
+/// An empty directory of this test process, `octaray-<tag>-<pid>` under the system's
+/// temporary directory (emptied first should an earlier run of this pid have left it).
+fn scratch_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("octaray-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// A small valid scene; tests corrupt one token of it at a time.
 const BASE: &str = "\
 2
@@ -251,8 +260,7 @@ fn pixels_above_the_render_limit_load_but_render_only_smaller() {
     assert_eq!((e.line, e.col, e.field.as_str()), (2, 1, "pixels"));
     assert!(e.message.contains("--size"), "{e}");
     assert!(parse_scene(BASE, "t.txt").unwrap().too_large.is_none());
-    let dir = std::env::temp_dir().join(format!("octaray-big-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("big");
     let file = dir.join("big.txt");
     std::fs::write(&file, &big).unwrap();
     let run = |extra: &[&str]| {
@@ -466,9 +474,7 @@ fn every_committed_scene_parses() {
 /// The binary: bad input exits 2 with file:line:col on stderr and writes nothing.
 #[test]
 fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
-    let dir = std::env::temp_dir().join(format!("octaray-cli-bad-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("cli-bad");
     let scene = dir.join("bad.txt");
     std::fs::write(&scene, with_line(6, "-5")).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_octaray"))
@@ -509,9 +515,7 @@ fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
 #[cfg(unix)]
 #[test]
 fn special_files_and_bad_outputs_are_refused_up_front() {
-    let dir = std::env::temp_dir().join(format!("octaray-special-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("special");
     let run = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_octaray"))
             .current_dir(&dir)
@@ -572,8 +576,7 @@ fn special_files_and_bad_outputs_are_refused_up_front() {
 #[test]
 fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
     use octaray::scene::obj::load_obj;
-    let dir = std::env::temp_dir().join(format!("octaray-objbom-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("objbom");
     let body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     let bom = dir.join("bom.obj");
     std::fs::write(&bom, [&b"\xef\xbb\xbf"[..], body].concat()).unwrap();
@@ -607,9 +610,7 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
 #[test]
 fn a_limit_on_threads_renders_on_one_thread() {
     use std::os::unix::fs::PermissionsExt;
-    let dir = std::env::temp_dir().join(format!("octaray-nproc-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("nproc");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
     // a copy any user may run (the build directory may not be readable to others)
     let exe = dir.join("octaray");
@@ -679,9 +680,7 @@ fn files_that_cannot_be_replaced_are_written_in_place() {
     if Command::new("id").arg("-u").output().unwrap().stdout != b"0\n" {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("octaray-sticky-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("sticky");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o1777)).unwrap();
     let exe = dir.join("octaray");
     std::fs::copy(env!("CARGO_BIN_EXE_octaray"), &exe).unwrap();
@@ -757,9 +756,7 @@ fn wait_until_caught(pid: u32, signal: u32) {
 fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
-    let dir = std::env::temp_dir().join(format!("octaray-signals-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("signals");
     let exe = env!("CARGO_BIN_EXE_octaray");
     // (a render of seconds, ended within milliseconds of its start)
     let slow = [
