@@ -16,6 +16,25 @@ fn scratch_dir(tag: &str) -> PathBuf {
     dir
 }
 
+/// A copy of the octaray binary in `dir` that any user may run (tests that run it as
+/// another user: the build directory may not be open to others). Copied by `cp`, not
+/// in this process: a write descriptor open here while another test thread forks a
+/// child is inherited by that child until it execs, and running the copy then fails
+/// with "Text file busy".
+#[cfg(unix)]
+fn exe_for_anyone(dir: &std::path::Path) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let exe = dir.join("octaray");
+    let copied = Command::new("cp")
+        .arg(env!("CARGO_BIN_EXE_octaray"))
+        .arg(&exe)
+        .status()
+        .expect("cp runs");
+    assert!(copied.success());
+    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    exe
+}
+
 /// A small valid scene; tests corrupt one token of it at a time.
 const BASE: &str = "\
 2
@@ -612,10 +631,7 @@ fn a_limit_on_threads_renders_on_one_thread() {
     use std::os::unix::fs::PermissionsExt;
     let dir = scratch_dir("nproc");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
-    // a copy any user may run (the build directory may not be readable to others)
-    let exe = dir.join("octaray");
-    std::fs::copy(env!("CARGO_BIN_EXE_octaray"), &exe).unwrap();
-    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let exe = exe_for_anyone(&dir);
     let free = Command::new(&exe)
         .args(["render", "--size", "16", "-o"])
         .arg(dir.join("free.bmp"))
@@ -626,11 +642,14 @@ fn a_limit_on_threads_renders_on_one_thread() {
     let limited = |threads: &[&str], out: &str| {
         let mut c = Command::new("prlimit");
         c.arg("--nproc=1");
+        // (a uid of its own: the limit counts every process of the user, and the
+        // sticky-directory test below runs octaray as `nobody` at the same time, which
+        // made this exec fail with EAGAIN in one CI run)
         if root {
             c.args([
                 "setpriv",
-                "--reuid=65534",
-                "--regid=65534",
+                "--reuid=64999",
+                "--regid=64999",
                 "--clear-groups",
             ]);
         }
@@ -682,9 +701,7 @@ fn files_that_cannot_be_replaced_are_written_in_place() {
     }
     let dir = scratch_dir("sticky");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o1777)).unwrap();
-    let exe = dir.join("octaray");
-    std::fs::copy(env!("CARGO_BIN_EXE_octaray"), &exe).unwrap();
-    std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let exe = exe_for_anyone(&dir);
     let free = dir.join("free.bmp");
     let out = Command::new(&exe)
         .args(["render", "--size", "16", "-o"])
