@@ -137,6 +137,9 @@ pub struct Quadric32 {
     /// Bounds of the surface when it is an ellipsoid (then it can live in the BVH even
     /// when the box leaves an axis unclipped).
     pub ellipsoid: Option<Aabb>,
+    /// Bounds of the surface inside a box that clips some axes, where the sections
+    /// across them are bounded ([`section_bounds`]: a cylinder cut across its axis).
+    pub section: Option<Aabb>,
 }
 
 /// The ten terms of F = Ax² + By² + Cz² + Dxy + Exz + Fyz + Gx + Hy + Iz + J at (x, y, z),
@@ -231,6 +234,165 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     Some(Aabb::new(
         Vec3::new(f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)),
         Vec3::new(f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)),
+    ))
+}
+
+/// Bounds of {F = 0} inside a box that clips one or two axes and leaves the others
+/// open, when the quadratic part restricted to the open axes U is definite: a cylinder,
+/// cone, paraboloid or hyperboloid cut across its axis, the usual clipped quadric of a
+/// scene file, which otherwise had no finite bounds and was tested by every ray beside
+/// the tree. `box_lo`/`box_hi` in the frame of `k`, ±∞ on open axes.
+///
+/// Fixing the clipped coordinates w leaves a section in U (an ellipse, or two points
+/// for one open axis): centre u*(w) = −½·M_UU⁻¹·(2·M_UC·w + g_U), affine in w, and
+/// (u − u*)ᵀ·M_UU·(u − u*) = k(w), with k(w) = −F(u*(w), w) quadratic in w. So u_i stays
+/// within u*_i(w) ± √(k(w)·(M_UU⁻¹)_ii): bounded by u* at the corners of the clipped
+/// range and by the largest k over it, found among its corners, the vertices of k
+/// along its edges and inside. k is evaluated as F itself at the section's centre, as
+/// [`ellipsoid_bounds`] does (∇_U F = 0 there), raised by F's rounding bound, and the
+/// result padded by the same relative 1e-5.
+fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
+    let [a, b, c, d, e, f, _, _, _, _] = *k;
+    let m = [
+        [a, d / 2.0, e / 2.0],
+        [d / 2.0, b, f / 2.0],
+        [e / 2.0, f / 2.0, c],
+    ];
+    let g = [k[6], k[7], k[8]];
+    let is_clipped = |i: usize| box_lo[i].is_finite() && box_hi[i].is_finite();
+    let clipped: Vec<usize> = (0..3).filter(|&i| is_clipped(i)).collect();
+    let open: Vec<usize> = (0..3).filter(|&i| !is_clipped(i)).collect();
+    if clipped.is_empty() || open.is_empty() {
+        return None;
+    }
+    // M_UU⁻¹ (row-major, n × n), for M_UU definite with a margin
+    let inv: Vec<f64> = if let [u] = open[..] {
+        let muu = m[u][u];
+        if muu == 0.0 {
+            return None;
+        }
+        vec![1.0 / muu]
+    } else {
+        let (u, v) = (open[0], open[1]);
+        let (p, q, r) = (m[u][u], m[u][v], m[v][v]);
+        let det = p * r - q * q;
+        // (false for NaN too)
+        let definite = det > DEFINITE_MARGIN * ((p * r).abs() + q * q);
+        if !definite {
+            return None;
+        }
+        vec![r / det, -q / det, -q / det, p / det]
+    };
+    let n = open.len();
+    // the section's centre for clipped coordinates w (in `clipped` order)
+    let centre = |w: &[f64]| -> DVec3 {
+        let mut p = DVec3::ZERO;
+        for (ci, &axis) in clipped.iter().enumerate() {
+            p[axis] = w[ci];
+        }
+        let rhs: Vec<f64> = open
+            .iter()
+            .map(|&u| {
+                let coupled: f64 = clipped.iter().zip(w).map(|(&cx, &wc)| m[u][cx] * wc).sum();
+                -(2.0 * coupled + g[u]) / 2.0
+            })
+            .collect();
+        for (ui, &u) in open.iter().enumerate() {
+            p[u] = (0..n).map(|uj| inv[ui * n + uj] * rhs[uj]).sum();
+        }
+        p
+    };
+    // k(w) = −F at the centre, with F's sign made that of a positive-definite M_UU,
+    // raised by a bound on F's own rounding
+    let sign = if inv[0] > 0.0 { 1.0 } else { -1.0 };
+    let k_at = |w: &[f64]| {
+        let p = centre(w);
+        let rounding = 12.0 * f64::EPSILON * terms(k, p.x, p.y, p.z, f64::abs);
+        -sign * terms(k, p.x, p.y, p.z, |t| t) + rounding
+    };
+    // k as a quadratic in w: k(w) = wᵀQw + qᵀw + q₀ (its vertices locate the candidates)
+    let cdim = clipped.len();
+    let coupling = |ci: usize, cj: usize| -> f64 {
+        // ¼·B1ᵀ·M_UU⁻¹·B1 with B1 = 2·M_UC
+        let mut s = 0.0;
+        for ui in 0..n {
+            for uj in 0..n {
+                s += m[open[ui]][clipped[ci]] * inv[ui * n + uj] * m[open[uj]][clipped[cj]];
+            }
+        }
+        sign * (s - m[clipped[ci]][clipped[cj]])
+    };
+    let linear = |ci: usize| -> f64 {
+        let mut s = 0.0;
+        for ui in 0..n {
+            for uj in 0..n {
+                s += m[open[ui]][clipped[ci]] * inv[ui * n + uj] * g[open[uj]];
+            }
+        }
+        sign * (s - g[clipped[ci]])
+    };
+    let lo = |ci: usize| box_lo[clipped[ci]];
+    let hi = |ci: usize| box_hi[clipped[ci]];
+    // the vertex of t ↦ Q·t² + l·t on [lo, hi], where it is a maximum inside
+    let vertex = |qq: f64, l: f64, lo: f64, hi: f64| -> Option<f64> {
+        let t = -l / (2.0 * qq);
+        (qq < 0.0 && t > lo && t < hi).then_some(t)
+    };
+    let mut candidates: Vec<Vec<f64>> = Vec::new();
+    let mut corners: Vec<Vec<f64>> = Vec::new();
+    if cdim == 1 {
+        corners = vec![vec![lo(0)], vec![hi(0)]];
+        if let Some(t) = vertex(coupling(0, 0), linear(0), lo(0), hi(0)) {
+            candidates.push(vec![t]);
+        }
+    } else {
+        let (q00, q01, q11) = (coupling(0, 0), coupling(0, 1), coupling(1, 1));
+        let (l0, l1) = (linear(0), linear(1));
+        for w0 in [lo(0), hi(0)] {
+            for w1 in [lo(1), hi(1)] {
+                corners.push(vec![w0, w1]);
+            }
+            // along the edge w0 fixed: Q11·w1² + (l1 + 2·Q01·w0)·w1 + …
+            if let Some(t) = vertex(q11, l1 + 2.0 * q01 * w0, lo(1), hi(1)) {
+                candidates.push(vec![w0, t]);
+            }
+        }
+        for w1 in [lo(1), hi(1)] {
+            if let Some(t) = vertex(q00, l0 + 2.0 * q01 * w1, lo(0), hi(0)) {
+                candidates.push(vec![t, w1]);
+            }
+        }
+        // inside: 2·Q·w = −l, a maximum where Q is negative definite
+        let det = q00 * q11 - q01 * q01;
+        if q00 < 0.0 && det > 0.0 {
+            let w0 = (-l0 * q11 + l1 * q01) / (2.0 * det);
+            let w1 = (-l1 * q00 + l0 * q01) / (2.0 * det);
+            if w0 > lo(0) && w0 < hi(0) && w1 > lo(1) && w1 < hi(1) {
+                candidates.push(vec![w0, w1]);
+            }
+        }
+    }
+    candidates.extend(corners.iter().cloned());
+    let k_max = candidates.iter().map(|w| k_at(w)).fold(0.0f64, f64::max);
+    let (mut low, mut high) = (box_lo, box_hi);
+    for (ui, &u) in open.iter().enumerate() {
+        let half = (k_max * sign * inv[ui * n + ui]).max(0.0).sqrt();
+        let (c_lo, c_hi) = corners
+            .iter()
+            .map(|w| centre(w)[u])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), c| {
+                (l.min(c), h.max(c))
+            });
+        let pad = (half + c_lo.abs().max(c_hi.abs())) * 1e-5;
+        low[u] = c_lo - half - pad;
+        high[u] = c_hi + half + pad;
+    }
+    if !(low.is_finite() && high.is_finite()) {
+        return None;
+    }
+    Some(Aabb::new(
+        Vec3::new(f32_down(low.x), f32_down(low.y), f32_down(low.z)),
+        Vec3::new(f32_up(high.x), f32_up(high.y), f32_up(high.z)),
     ))
 }
 
@@ -346,17 +508,23 @@ impl Quadric32 {
             lo: Vec3::new(x.0, y.0, z.0),
             hi: Vec3::new(x.1, y.1, z.1),
             ellipsoid: ellipsoid_bounds(&k),
+            section: section_bounds(
+                &k,
+                DVec3::new(ex.0, ey.0, ez.0),
+                DVec3::new(ex.1, ey.1, ez.1),
+            ),
         }
     }
 
     /// Finite bounds: the clipping box when every axis is clipped, else the bounds of
-    /// an ellipsoid (definite quadratic part) cut by the box, else none.
+    /// an ellipsoid (definite quadratic part) or of bounded sections across the clipped
+    /// axes, cut by the box, else none.
     pub fn bounds(&self) -> Option<Aabb> {
         let mut lo = self.lo;
         let mut hi = self.hi;
-        if let Some(e) = self.ellipsoid {
-            lo = lo.max(e.lo);
-            hi = hi.min(e.hi);
+        for b in [self.ellipsoid, self.section].into_iter().flatten() {
+            lo = lo.max(b.lo);
+            hi = hi.min(b.hi);
         }
         (lo.is_finite() && hi.is_finite()).then(|| Aabb::new(lo.min(hi), hi))
     }
@@ -569,6 +737,126 @@ mod tests {
 
     fn unit_sphere_clipped(size: [f64; 3], min: [f64; 3]) -> Quadric {
         quadric([1., 1., 1., 0., 0., 0., 0., 0., 0., -1.], min, size)
+    }
+
+    /// The section bounds of `coef` clipped to [min, min + size] (size 0: open), in
+    /// the quadric's own frame.
+    fn section(coef: [f64; 10], min: [f64; 3], size: [f64; 3]) -> Option<Aabb> {
+        Quadric32::new(&quadric(coef, min, size), DVec3::ZERO).bounds()
+    }
+
+    fn assert_near(b: Option<Aabb>, lo: [f32; 3], hi: [f32; 3]) {
+        let b = b.expect("bounded");
+        let close = |x: Vec3, y: Vec3| (x - y).abs().max_element() < 1e-3;
+        assert!(
+            close(b.lo, Vec3::from(lo)) && close(b.hi, Vec3::from(hi)),
+            "{b:?}"
+        );
+    }
+
+    #[test]
+    fn quadrics_cut_across_their_axis_are_bounded() {
+        // a cylinder x² + y² = 1, cut at z in [0, 5]
+        let cyl = [1., 1., 0., 0., 0., 0., 0., 0., 0., -1.];
+        assert_near(
+            section(cyl, [0., 0., 0.], [0., 0., 5.]),
+            [-1., -1., 0.],
+            [1., 1., 5.],
+        );
+        // the cone x² + y² = z², cut at z in [1, 3]; the paraboloid z = x² + y², z ≤ 4
+        let cone = [1., 1., -1., 0., 0., 0., 0., 0., 0., 0.];
+        assert_near(
+            section(cone, [0., 0., 1.], [0., 0., 2.]),
+            [-3., -3., 1.],
+            [3., 3., 3.],
+        );
+        let bowl = [1., 1., 0., 0., 0., 0., 0., 0., -1., 0.];
+        assert_near(
+            section(bowl, [0., 0., 0.], [0., 0., 4.]),
+            [-2., -2., 0.],
+            [2., 2., 4.],
+        );
+        // x² − y² + z² = 1 cut at x, y in [−2, 2]: z² ≤ 1 + 4 (two open-axis roots)
+        let saddle = [1., -1., 1., 0., 0., 0., 0., 0., 0., -1.];
+        let r = 5f32.sqrt();
+        assert_near(
+            section(saddle, [-2., -2., 0.], [4., 4., 0.]),
+            [-2., -2., -r],
+            [2., 2., r],
+        );
+        // a cylinder along x cut only at z stays unbounded along x
+        let x_cyl = [0., 1., 1., 0., 0., 0., 0., 0., 0., -1.];
+        assert_eq!(section(x_cyl, [0., 0., -1.], [0., 0., 2.]), None);
+    }
+
+    /// Points of random quadrics cut on one or two axes, found by solving F along random
+    /// lines in f64, all lie in their section bounds; and most such quadrics get bounds.
+    #[test]
+    fn section_bounds_hold_every_surface_point() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let (mut bounded, mut points) = (0, 0);
+        for trial in 0..400 {
+            let mut coef = [0.0; 10];
+            coef.iter_mut().for_each(|c| *c = rand() * 3.0);
+            // a third of them cylinders and cones along an axis: zero cross terms
+            if trial % 3 == 0 {
+                coef[3..6].iter_mut().for_each(|c| *c = 0.0);
+            }
+            let axes = 1 + trial % 2;
+            let mut min = [0.0; 3];
+            let mut size = [0.0; 3];
+            for i in 0..axes {
+                let axis = (trial / 2 + i) % 3;
+                min[axis] = rand() * 4.0;
+                size[axis] = 0.1 + rand().abs() * 5.0;
+            }
+            let q = quadric(coef, min, size);
+            let Some(b) = Quadric32::new(&q, DVec3::ZERO).bounds() else {
+                continue;
+            };
+            bounded += 1;
+            let (lo, hi) = (b.lo.as_dvec3(), b.hi.as_dvec3());
+            for _ in 0..300 {
+                // a random line through the clipped slab, far out along the open axes
+                let mut o = DVec3::ZERO;
+                let mut d = DVec3::ZERO;
+                for i in 0..3 {
+                    o[i] = if size[i] > 0.0 {
+                        min[i] + size[i] * (rand() + 1.0) / 2.0
+                    } else {
+                        rand() * 1e3
+                    };
+                    d[i] = if size[i] > 0.0 { rand() * 1e-3 } else { rand() };
+                }
+                let (a2, b1, c0) = along(&q.coef, o.to_array(), d.to_array());
+                let disc = b1 * b1 - 4.0 * a2 * c0;
+                if a2 == 0.0 || disc < 0.0 {
+                    continue;
+                }
+                let qq = -0.5 * (b1 + disc.sqrt().copysign(b1));
+                for t in [qq / a2, c0 / qq] {
+                    let p = o + d * t;
+                    let inside = (0..3)
+                        .all(|i| size[i] == 0.0 || (p[i] >= min[i] && p[i] <= min[i] + size[i]));
+                    if !inside || !p.is_finite() {
+                        continue;
+                    }
+                    points += 1;
+                    assert!(
+                        p.cmpge(lo).all() && p.cmple(hi).all(),
+                        "trial {trial}: {p} outside {lo}..{hi} ({coef:?}, {min:?}, {size:?})"
+                    );
+                }
+            }
+        }
+        assert!(bounded > 100, "{bounded} of 400 bounded");
+        assert!(points > 10_000, "{points} points checked");
     }
 
     #[test]
