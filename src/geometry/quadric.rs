@@ -413,6 +413,35 @@ fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
     ))
 }
 
+/// [`section_bounds`] for the box's own clipping and, with each further set of open
+/// axes taken as clipped to ±[`super::BOUNDS_LIMIT`] (where the tree clamps every
+/// bound anyway), for surfaces unbounded only along those axes: an unclipped vertical
+/// cylinder gets its footprint in x and y. All finite results, intersected.
+fn open_axis_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
+    let limit = f64::from(super::BOUNDS_LIMIT);
+    let open: Vec<usize> = (0..3)
+        .filter(|&i| !(box_lo[i].is_finite() && box_hi[i].is_finite()))
+        .collect();
+    let mut out: Option<Aabb> = None;
+    // every subset of the open axes, the empty one (the box as it is) included
+    for subset in 0..(1u32 << open.len()) {
+        let (mut lo, mut hi) = (box_lo, box_hi);
+        for (bit, &axis) in open.iter().enumerate() {
+            if subset & (1 << bit) != 0 {
+                lo[axis] = -limit;
+                hi[axis] = limit;
+            }
+        }
+        if let Some(b) = section_bounds(k, lo, hi) {
+            out = Some(match out {
+                Some(o) => Aabb::new(o.lo.max(b.lo), o.hi.min(b.hi)),
+                None => b,
+            });
+        }
+    }
+    out
+}
+
 /// Arithmetic shared by the single-ray (f64) and packet (f64x8) quadric kernels, so
 /// that both evaluate the same expressions in the same order.
 trait Lanes: Copy + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self> {
@@ -525,7 +554,7 @@ impl Quadric32 {
             lo: Vec3::new(x.0, y.0, z.0),
             hi: Vec3::new(x.1, y.1, z.1),
             ellipsoid: ellipsoid_bounds(&k),
-            section: section_bounds(
+            section: open_axis_bounds(
                 &k,
                 DVec3::new(ex.0, ey.0, ez.0),
                 DVec3::new(ex.1, ey.1, ez.1),
@@ -801,13 +830,24 @@ mod tests {
             [-2., -2., -r],
             [2., 2., r],
         );
-        // a cylinder along x cut only at z stays unbounded along x
+        // a cylinder along x, cut at z or not at all: its footprint in y and z, and the
+        // tree's limit along x
         let x_cyl = [0., 1., 1., 0., 0., 0., 0., 0., 0., -1.];
-        assert_eq!(section(x_cyl, [0., 0., -1.], [0., 0., 2.]), None);
+        let limit = crate::geometry::BOUNDS_LIMIT;
+        for size in [[0., 0., 2.], [0.; 3]] {
+            assert_near(
+                section(x_cyl, [0., 0., -1.], size),
+                [-limit, -1., -1.],
+                [limit, 1., 1.],
+            );
+        }
+        // a plane (no quadratic part) stays unbounded
+        let plane = [0., 0., 0., 0., 0., 0., 0., 0., 1., -1.];
+        assert_eq!(section(plane, [0., 0., 0.], [0., 0., 0.]), None);
     }
 
-    /// Points of random quadrics cut on one or two axes, found by solving F along random
-    /// lines in f64, all lie in their section bounds (in the frame of a camera at the
+    /// Points of random quadrics cut on one or two axes or none, found by solving F
+    /// along random lines in f64, all lie in their section bounds (in the frame of a camera at the
     /// origin or far away); and most such quadrics get bounds.
     #[test]
     fn section_bounds_hold_every_surface_point() {
@@ -826,7 +866,8 @@ mod tests {
             if trial % 3 == 0 {
                 coef[3..6].iter_mut().for_each(|c| *c = 0.0);
             }
-            let axes = 1 + trial % 2;
+            // cut on one or two axes, or (every fifth) on none
+            let axes = if trial % 5 == 4 { 0 } else { 1 + trial % 2 };
             let mut min = [0.0; 3];
             let mut size = [0.0; 3];
             for i in 0..axes {
