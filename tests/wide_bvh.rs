@@ -248,11 +248,12 @@ fn wide_equals_binary_with_signed_zero_directions() {
 /// to the lower object index on both walks.
 fn mixed_scene() -> Scene {
     let mut scene = generated_scene(400, 5);
-    // two unbounded quadrics (tested beside the tree): cylinders along z and x, unclipped
+    // two unbounded quadrics (tested beside the tree): a tilted plane and a saddle
+    // (cylinders along an axis, unclipped, have a footprint and go in the tree)
     let material = scene.objects[0].material;
     for coef in [
-        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 20.0, -40.0, 0.0, 491.0],
-        [0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 60.0, -20.0, 999.0],
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3, -0.2, 1.0, -15.0],
+        [0.01, -0.01, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 5.0],
     ] {
         scene.objects.push(Object {
             shape: Shape::Quadric(Quadric {

@@ -432,7 +432,19 @@ fn open_axis_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb>
                 hi[axis] = limit;
             }
         }
-        if let Some(b) = section_bounds(k, lo, hi) {
+        let Some(b) = section_bounds(k, lo, hi) else {
+            continue;
+        };
+        // only a footprint along an axis not taken as clipped is worth a box (a
+        // saddle gets bounds at the limit on every axis: it stays beside the tree)
+        let footprint = (0..3).any(|i| {
+            let assumed = open
+                .iter()
+                .position(|&a| a == i)
+                .is_some_and(|bit| subset & (1 << bit) != 0);
+            !assumed && b.hi[i] - b.lo[i] < super::BOUNDS_LIMIT
+        });
+        if footprint {
             out = Some(match out {
                 Some(o) => Aabb::new(o.lo.max(b.lo), o.hi.min(b.hi)),
                 None => b,
