@@ -435,14 +435,15 @@ fn open_axis_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb>
         let Some(b) = section_bounds(k, lo, hi) else {
             continue;
         };
-        // only a footprint along an axis not taken as clipped is worth a box (a
-        // saddle gets bounds at the limit on every axis: it stays beside the tree)
+        // only a footprint along an axis not taken as clipped is worth a box: one far
+        // below the limit (an unclipped cone or saddle gets bounds near the limit on
+        // every axis, which cull nothing: it stays beside the tree)
         let footprint = (0..3).any(|i| {
             let assumed = open
                 .iter()
                 .position(|&a| a == i)
                 .is_some_and(|bit| subset & (1 << bit) != 0);
-            !assumed && b.hi[i] - b.lo[i] < super::BOUNDS_LIMIT
+            !assumed && b.hi[i] - b.lo[i] < super::BOUNDS_LIMIT / 1024.0
         });
         if footprint {
             out = Some(match out {
