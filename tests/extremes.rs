@@ -120,6 +120,41 @@ fn axis_aligned_views_with_zero_direction_components() {
     }
 }
 
+/// Rays lying exactly in a clip-box face: the default eye sits at z = 50, level with
+/// the top of cylinders clipped to z in [0, 50], and the centre row of an odd-sized image
+/// has direction z = +0 exactly. The tree's boxes ended at the face, so those rays met
+/// it at t = 0 as their exit and missed the box, though the cylinder's points on the
+/// face count: its top row vanished, seen directly, in a mirror and as leaked light
+/// in a shadow (found by a differential test of two builds). Pass: every profile
+/// matches the reference with no pixel off by more than 8/255.
+#[test]
+fn rays_in_a_clip_face_plane_keep_their_hits() {
+    let cases = [
+        // clipped in z only, and on all three axes
+        "1 33 1 general 1 1 0 0 0 0 0 0 0 -100  0 0 0  0 0 50  1 0 0  0.4 0.5 0.2 0 10
+         1 60 -40 120  1 1 1 0",
+        "1 33 1 general 1 1 0 0 0 0 0 0 0 -100  -20 -20 0  40 40 50  1 0 0  0.4 0.5 0.2 0 10
+         1 60 -40 120  1 1 1 0",
+        // the same cylinder's top seen in a mirror, and casting a shadow
+        "2 33 2 general 1 1 0 0 0 0 0 0 0 -400  0 0 0  0 0 100  0.8 0.8 0.8  0.1 0.2 0.3 0.8 20
+         general 1 1 0 0 0 0 -300 -300 0 44900  0 0 0  0 0 50  1 0 0  0.4 0.5 0.2 0 10
+         1 60 -40 120  1 1 1 0",
+        "1 33 2 general 1 1 0 0 0 0 0 0 0 -400  0 0 0  0 0 100  0.8 0.8 0.8  0.1 0.8 0.1 0 20
+         general 1 1 0 0 0 0 -114 46 0 3753  0 0 0  0 0 50  1 0 0  0.4 0.5 0.2 0 10
+         1 100 -60 50  1 1 1 0",
+    ];
+    for (k, text) in cases.iter().enumerate() {
+        let s = scene(text);
+        let cam = Camera::default();
+        let reference = render("reference", &s, cam, 33);
+        let ids = reference_ids(&s, &cam, 33);
+        for p in &PROFILES[1..] {
+            let d = compare(&reference, &render(p, &s, cam, 33), &ids);
+            assert_eq!(d.off8, 0, "case {k} [{p}]: {d:?}");
+        }
+    }
+}
+
 // ------------------------------------------------------------ 2. closed mesh from inside
 
 /// A closed sphere of ~1900 randomly perturbed triangles around the camera, ambient

@@ -40,7 +40,36 @@ impl Aabb {
     pub fn centroid(&self) -> Vec3 {
         (self.lo + self.hi) * 0.5
     }
+
+    /// The box moved out past every face by at least one f32 step and [`FACE_GAP`], as
+    /// the tree's nodes store it. A ray lying exactly in a face plane (a zero direction
+    /// component, its origin on the face: a camera level with the top of a clipped
+    /// cylinder, the centre row of an odd-sized image) met that face at t = 0 as its
+    /// exit (1/d is +2¹⁰⁰ for +0) and missed the box, though the surface's points on
+    /// the face count (the quadric's box test is inclusive): a row of the cylinder's
+    /// top vanished (found by a differential test of two builds). Inside the gap, the
+    /// face imposes no bound on such a ray; a ray in the moved face plane itself meets
+    /// nothing inside. Empty and infinite coordinates stay as they are.
+    pub fn outward(self) -> Aabb {
+        let out = |v: f32, up: bool| {
+            if !v.is_finite() {
+                return v;
+            }
+            let step = if up { v.next_up() } else { v.next_down() };
+            let gap = if up { v + FACE_GAP } else { v - FACE_GAP };
+            if up { step.max(gap) } else { step.min(gap) }
+        };
+        Aabb::new(
+            Vec3::from(self.lo.to_array().map(|v| out(v, false))),
+            Vec3::from(self.hi.to_array().map(|v| out(v, true))),
+        )
+    }
 }
+
+/// The least distance by which a node's box clears the bounds it holds ([`Aabb::outward`]):
+/// 2⁻⁵⁰ ≈ 8.9e-16, beyond one f32 step where coordinates are near 0 (the camera's own
+/// planes in its frame).
+pub const FACE_GAP: f32 = 8.881_784e-16;
 
 /// A node of the flat BVH array. 32 B, two per cache line, 32-byte aligned.
 ///
@@ -64,6 +93,7 @@ const COUNT_MASK: u32 = (1 << 28) - 1;
 
 impl BvhNode {
     pub fn interior(b: Aabb, left: u32, axis: usize) -> BvhNode {
+        let b = b.outward();
         BvhNode {
             lo: b.lo.into(),
             first: left,
@@ -74,6 +104,7 @@ impl BvhNode {
 
     pub fn leaf(b: Aabb, first: u32, count: u32, kind: PrimKind) -> BvhNode {
         debug_assert!(count > 0 && count <= COUNT_MASK);
+        let b = b.outward();
         BvhNode {
             lo: b.lo.into(),
             first,

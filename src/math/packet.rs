@@ -28,8 +28,11 @@ pub const fn gamma32(n: u32) -> f32 {
 /// Factor widening a box's far bound so rays through box edges are not lost.
 pub const FAR_WIDEN: f32 = 1.0 + 2.0 * gamma32(3);
 
-/// Smallest |d| used for 1/d in the slab test.
-const MIN_DIR: f32 = 1e-18;
+/// Smallest |d| used for 1/d in the slab test: 2⁻¹⁰⁰, so that 1/d (±1.3e30) times a box
+/// face's gap of [`crate::bvh::node::FACE_GAP`] (2⁻⁵⁰) still passes every distance a
+/// ray goes in the tree (its bounds stop at 2⁴⁴). (1/d stays finite and a product
+/// with it can overflow only to ±∞: no t is NaN.)
+const MIN_DIR: f32 = 7.888_609e-31;
 
 /// 1/d with |d| clamped to at least [`MIN_DIR`], sign kept (the slab rule).
 #[inline]
