@@ -269,7 +269,7 @@ fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
     let inv: Vec<f64> = if let [u] = open[..] {
         let muu = m[u][u];
         if muu == 0.0 {
-            return None;
+            return linear_section_bounds(k, &m, u, &clipped, box_lo, box_hi);
         }
         vec![1.0 / muu]
     } else {
@@ -404,6 +404,78 @@ fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
         low[u] = c_lo - half - pad;
         high[u] = c_hi + half + pad;
     }
+    if !(low.is_finite() && high.is_finite()) {
+        return None;
+    }
+    Some(Aabb::new(
+        Vec3::new(f32_down(low.x), f32_down(low.y), f32_down(low.z)),
+        Vec3::new(f32_up(high.x), f32_up(high.y), f32_up(high.z)),
+    ))
+}
+
+/// [`section_bounds`] where the one open axis `u` enters F linearly and alone: no u²
+/// and no cross term with the clipped axes (a plane clipped on the two axes along it,
+/// as a wall or a mirror is written, or a parabolic cylinder cut across its axis). Then
+/// F = g_u·u + c(w), and u = −c(w)/g_u over the clipped rectangle, c quadratic in w:
+/// bounded by c at the rectangle's corners and at its stationary points along the
+/// edges and inside; c is F itself at u = 0, raised by F's rounding bound, and the
+/// result padded by the same relative 1e-5 as the other bounds.
+fn linear_section_bounds(
+    k: &[f64; 10],
+    m: &[[f64; 3]; 3],
+    u: usize,
+    clipped: &[usize],
+    box_lo: DVec3,
+    box_hi: DVec3,
+) -> Option<Aabb> {
+    let gu = k[6 + u];
+    let [c0, c1] = clipped[..] else {
+        return None;
+    };
+    if gu == 0.0 || m[u][c0] != 0.0 || m[u][c1] != 0.0 {
+        return None;
+    }
+    let (lo0, hi0, lo1, hi1) = (box_lo[c0], box_hi[c0], box_lo[c1], box_hi[c1]);
+    // c(w) = Q00·w0² + 2·Q01·w0·w1 + Q11·w1² + l0·w0 + l1·w1 + …
+    let (q00, q01, q11) = (m[c0][c0], m[c0][c1], m[c1][c1]);
+    let (l0, l1) = (k[6 + c0], k[6 + c1]);
+    let mut candidates = vec![(lo0, lo1), (lo0, hi1), (hi0, lo1), (hi0, hi1)];
+    let stationary = |q: f64, l: f64, lo: f64, hi: f64| {
+        let t = -l / (2.0 * q);
+        (q != 0.0 && t > lo && t < hi).then_some(t)
+    };
+    for w0 in [lo0, hi0] {
+        if let Some(t) = stationary(q11, l1 + 2.0 * q01 * w0, lo1, hi1) {
+            candidates.push((w0, t));
+        }
+    }
+    for w1 in [lo1, hi1] {
+        if let Some(t) = stationary(q00, l0 + 2.0 * q01 * w1, lo0, hi0) {
+            candidates.push((t, w1));
+        }
+    }
+    let det = q00 * q11 - q01 * q01;
+    if det != 0.0 {
+        let w0 = (-l0 * q11 + l1 * q01) / (2.0 * det);
+        let w1 = (-l1 * q00 + l0 * q01) / (2.0 * det);
+        if w0 > lo0 && w0 < hi0 && w1 > lo1 && w1 < hi1 {
+            candidates.push((w0, w1));
+        }
+    }
+    let (mut u_lo, mut u_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (w0, w1) in candidates {
+        let mut p = DVec3::ZERO;
+        p[c0] = w0;
+        p[c1] = w1;
+        let value = -terms(k, p.x, p.y, p.z, |t| t) / gu;
+        let rounding = 12.0 * f64::EPSILON * terms(k, p.x, p.y, p.z, f64::abs) / gu.abs();
+        u_lo = u_lo.min(value - rounding);
+        u_hi = u_hi.max(value + rounding);
+    }
+    let pad = (u_hi - u_lo + u_lo.abs().max(u_hi.abs())) * 1e-5;
+    let (mut low, mut high) = (box_lo, box_hi);
+    low[u] = u_lo - pad;
+    high[u] = u_hi + pad;
     if !(low.is_finite() && high.is_finite()) {
         return None;
     }
@@ -854,9 +926,30 @@ mod tests {
                 [limit, 1., 1.],
             );
         }
-        // a plane (no quadratic part) stays unbounded
+        // an unclipped plane: across an axis plane, the slab it lies in (and the limit
+        // along it); a tilted one stays unbounded. Clipped along it (a wall), a plane is
+        // bounded across it: x + 2y − 4 = 0 for y in [0, 3], z in [0, 1]: x in [−2, 4]
         let plane = [0., 0., 0., 0., 0., 0., 0., 0., 1., -1.];
-        assert_eq!(section(plane, [0., 0., 0.], [0., 0., 0.]), None);
+        assert_near(
+            section(plane, [0.; 3], [0.; 3]),
+            [-limit, -limit, 1.],
+            [limit, limit, 1.],
+        );
+        let tilted = [0., 0., 0., 0., 0., 0., 1., 1., 1., -1.];
+        assert_eq!(section(tilted, [0.; 3], [0.; 3]), None);
+        let wall = [0., 0., 0., 0., 0., 0., 1., 2., 0., -4.];
+        assert_near(
+            section(wall, [0., 0., 0.], [0., 3., 1.]),
+            [-2., 0., 0.],
+            [4., 3., 1.],
+        );
+        // z = y² − x², cut at x, y in [−1, 2]: z in [−4, 4]
+        let saddle = [-1., 1., 0., 0., 0., 0., 0., 0., -1., 0.];
+        assert_near(
+            section(saddle, [-1., -1., 0.], [3., 3., 0.]),
+            [-1., -1., -4.],
+            [2., 2., 4.],
+        );
     }
 
     /// Points of random quadrics cut on one or two axes or none, found by solving F
@@ -887,6 +980,16 @@ mod tests {
                 let axis = (trial / 2 + i) % 3;
                 min[axis] = rand() * 4.0;
                 size[axis] = 0.1 + rand().abs() * 5.0;
+            }
+            // every seventh: the open axes enter F linearly (no square, no cross term:
+            // a plane clipped along itself, a parabolic cylinder cut across its axis)
+            if trial % 7 == 6 {
+                // the coefficients of x², y², z² and of the cross terms xy, xz, yz
+                let (square, cross) = ([0, 1, 2], [[3, 4], [3, 5], [4, 5]]);
+                for a in (0..3).filter(|&a| size[a] == 0.0) {
+                    coef[square[a]] = 0.0;
+                    cross[a].iter().for_each(|&c| coef[c] = 0.0);
+                }
             }
             let q = quadric(coef, min, size);
             // in the frame of a camera at the origin, or 1e5 away (every third)
