@@ -231,10 +231,58 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     let pad = (half + centre.abs()) * 1e-5;
     let lo = centre - half - pad;
     let hi = centre + half + pad;
-    Some(Aabb::new(
-        Vec3::new(f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)),
-        Vec3::new(f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)),
-    ))
+    rounded_out(lo, hi)
+}
+
+/// The stationary point of t ↦ q·t² + l·t, where it lies inside (lo, hi).
+fn stationary(q: f64, l: f64, lo: f64, hi: f64) -> Option<f64> {
+    let t = -l / (2.0 * q);
+    (q != 0.0 && t > lo && t < hi).then_some(t)
+}
+
+/// Where q₀₀·w₀² + 2·q₀₁·w₀·w₁ + q₁₁·w₁² + l₀·w₀ + l₁·w₁ can take its extremes on the
+/// rectangle [lo, hi]: its four corners (first), then its stationary points along the
+/// edges and inside that lie in it.
+fn rectangle_extremes(q: [f64; 3], l: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Vec<[f64; 2]> {
+    let [q00, q01, q11] = q;
+    let [l0, l1] = l;
+    let mut out = vec![
+        [lo[0], lo[1]],
+        [lo[0], hi[1]],
+        [hi[0], lo[1]],
+        [hi[0], hi[1]],
+    ];
+    for w0 in [lo[0], hi[0]] {
+        // along the edge w0 fixed: q₁₁·w₁² + (l₁ + 2·q₀₁·w₀)·w₁ + …
+        if let Some(t) = stationary(q11, l1 + 2.0 * q01 * w0, lo[1], hi[1]) {
+            out.push([w0, t]);
+        }
+    }
+    for w1 in [lo[1], hi[1]] {
+        if let Some(t) = stationary(q00, l0 + 2.0 * q01 * w1, lo[0], hi[0]) {
+            out.push([t, w1]);
+        }
+    }
+    // inside: 2·Q·w = −l
+    let det = q00 * q11 - q01 * q01;
+    if det != 0.0 {
+        let w0 = (-l0 * q11 + l1 * q01) / (2.0 * det);
+        let w1 = (-l1 * q00 + l0 * q01) / (2.0 * det);
+        if w0 > lo[0] && w0 < hi[0] && w1 > lo[1] && w1 < hi[1] {
+            out.push([w0, w1]);
+        }
+    }
+    out
+}
+
+/// `lo`..`hi` rounded outwards to f32; `None` unless finite.
+fn rounded_out(lo: DVec3, hi: DVec3) -> Option<Aabb> {
+    (lo.is_finite() && hi.is_finite()).then(|| {
+        Aabb::new(
+            Vec3::new(f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)),
+            Vec3::new(f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)),
+        )
+    })
 }
 
 /// Bounds of {F = 0} inside a box that clips one or two axes and leaves the others
@@ -247,10 +295,10 @@ fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
 /// for one open axis): centre u*(w) = −½·M_UU⁻¹·(2·M_UC·w + g_U), affine in w, and
 /// (u − u*)ᵀ·M_UU·(u − u*) = k(w), with k(w) = −F(u*(w), w) quadratic in w. So u_i stays
 /// within u*_i(w) ± √(k(w)·(M_UU⁻¹)_ii): bounded by u* at the corners of the clipped
-/// range and by the largest k over it, found among its corners, the vertices of k
-/// along its edges and inside. k is evaluated as F itself at the section's centre, as
-/// [`ellipsoid_bounds`] does (∇_U F = 0 there), raised by F's rounding bound, and the
-/// result padded by the same relative 1e-5.
+/// range and by the largest k over it, found among its corners and the stationary
+/// points of k along its edges and inside ([`rectangle_extremes`]). k is evaluated as
+/// F itself at the section's centre, as [`ellipsoid_bounds`] does (∇_U F = 0 there),
+/// raised by F's rounding bound, and the result padded by the same relative 1e-5.
 fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
     let [a, b, c, d, e, f, _, _, _, _] = *k;
     let m = [
@@ -333,45 +381,21 @@ fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
     };
     let lo = |ci: usize| box_lo[clipped[ci]];
     let hi = |ci: usize| box_hi[clipped[ci]];
-    // the vertex of t ↦ Q·t² + l·t on [lo, hi], where it is a maximum inside
-    let vertex = |qq: f64, l: f64, lo: f64, hi: f64| -> Option<f64> {
-        let t = -l / (2.0 * qq);
-        (qq < 0.0 && t > lo && t < hi).then_some(t)
-    };
-    let mut candidates: Vec<Vec<f64>> = Vec::new();
-    let mut corners: Vec<Vec<f64>> = Vec::new();
-    if cdim == 1 {
-        corners = vec![vec![lo(0)], vec![hi(0)]];
-        if let Some(t) = vertex(coupling(0, 0), linear(0), lo(0), hi(0)) {
-            candidates.push(vec![t]);
-        }
+    // the clipped range's corners (where u* is extreme), then the other points where
+    // k can be largest
+    let (corners, mut candidates): (Vec<Vec<f64>>, Vec<Vec<f64>>) = if cdim == 1 {
+        let inside = stationary(coupling(0, 0), linear(0), lo(0), hi(0));
+        (
+            vec![vec![lo(0)], vec![hi(0)]],
+            inside.map(|t| vec![t]).into_iter().collect(),
+        )
     } else {
-        let (q00, q01, q11) = (coupling(0, 0), coupling(0, 1), coupling(1, 1));
-        let (l0, l1) = (linear(0), linear(1));
-        for w0 in [lo(0), hi(0)] {
-            for w1 in [lo(1), hi(1)] {
-                corners.push(vec![w0, w1]);
-            }
-            // along the edge w0 fixed: Q11·w1² + (l1 + 2·Q01·w0)·w1 + …
-            if let Some(t) = vertex(q11, l1 + 2.0 * q01 * w0, lo(1), hi(1)) {
-                candidates.push(vec![w0, t]);
-            }
-        }
-        for w1 in [lo(1), hi(1)] {
-            if let Some(t) = vertex(q00, l0 + 2.0 * q01 * w1, lo(0), hi(0)) {
-                candidates.push(vec![t, w1]);
-            }
-        }
-        // inside: 2·Q·w = −l, a maximum where Q is negative definite
-        let det = q00 * q11 - q01 * q01;
-        if q00 < 0.0 && det > 0.0 {
-            let w0 = (-l0 * q11 + l1 * q01) / (2.0 * det);
-            let w1 = (-l1 * q00 + l0 * q01) / (2.0 * det);
-            if w0 > lo(0) && w0 < hi(0) && w1 > lo(1) && w1 < hi(1) {
-                candidates.push(vec![w0, w1]);
-            }
-        }
-    }
+        let q = [coupling(0, 0), coupling(0, 1), coupling(1, 1)];
+        let extremes =
+            rectangle_extremes(q, [linear(0), linear(1)], [lo(0), lo(1)], [hi(0), hi(1)]);
+        let points: Vec<Vec<f64>> = extremes.iter().map(|w| w.to_vec()).collect();
+        (points[..4].to_vec(), points[4..].to_vec())
+    };
     candidates.extend(corners.iter().cloned());
     let k_max = candidates.iter().map(|w| k_at(w)).fold(0.0f64, f64::max);
     let (mut low, mut high) = (box_lo, box_hi);
@@ -404,13 +428,7 @@ fn section_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> Option<Aabb> {
         low[u] = c_lo - half - pad;
         high[u] = c_hi + half + pad;
     }
-    if !(low.is_finite() && high.is_finite()) {
-        return None;
-    }
-    Some(Aabb::new(
-        Vec3::new(f32_down(low.x), f32_down(low.y), f32_down(low.z)),
-        Vec3::new(f32_up(high.x), f32_up(high.y), f32_up(high.z)),
-    ))
+    rounded_out(low, high)
 }
 
 /// [`section_bounds`] where the one open axis `u` enters F linearly and alone: no u²
@@ -439,31 +457,9 @@ fn linear_section_bounds(
     // c(w) = Q00·w0² + 2·Q01·w0·w1 + Q11·w1² + l0·w0 + l1·w1 + …
     let (q00, q01, q11) = (m[c0][c0], m[c0][c1], m[c1][c1]);
     let (l0, l1) = (k[6 + c0], k[6 + c1]);
-    let mut candidates = vec![(lo0, lo1), (lo0, hi1), (hi0, lo1), (hi0, hi1)];
-    let stationary = |q: f64, l: f64, lo: f64, hi: f64| {
-        let t = -l / (2.0 * q);
-        (q != 0.0 && t > lo && t < hi).then_some(t)
-    };
-    for w0 in [lo0, hi0] {
-        if let Some(t) = stationary(q11, l1 + 2.0 * q01 * w0, lo1, hi1) {
-            candidates.push((w0, t));
-        }
-    }
-    for w1 in [lo1, hi1] {
-        if let Some(t) = stationary(q00, l0 + 2.0 * q01 * w1, lo0, hi0) {
-            candidates.push((t, w1));
-        }
-    }
-    let det = q00 * q11 - q01 * q01;
-    if det != 0.0 {
-        let w0 = (-l0 * q11 + l1 * q01) / (2.0 * det);
-        let w1 = (-l1 * q00 + l0 * q01) / (2.0 * det);
-        if w0 > lo0 && w0 < hi0 && w1 > lo1 && w1 < hi1 {
-            candidates.push((w0, w1));
-        }
-    }
+    let candidates = rectangle_extremes([q00, q01, q11], [l0, l1], [lo0, lo1], [hi0, hi1]);
     let (mut u_lo, mut u_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (w0, w1) in candidates {
+    for [w0, w1] in candidates {
         let mut p = DVec3::ZERO;
         p[c0] = w0;
         p[c1] = w1;
@@ -476,13 +472,7 @@ fn linear_section_bounds(
     let (mut low, mut high) = (box_lo, box_hi);
     low[u] = u_lo - pad;
     high[u] = u_hi + pad;
-    if !(low.is_finite() && high.is_finite()) {
-        return None;
-    }
-    Some(Aabb::new(
-        Vec3::new(f32_down(low.x), f32_down(low.y), f32_down(low.z)),
-        Vec3::new(f32_up(high.x), f32_up(high.y), f32_up(high.z)),
-    ))
+    rounded_out(low, high)
 }
 
 /// [`section_bounds`] for the box's own clipping and, with one further open axis taken
