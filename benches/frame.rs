@@ -2,6 +2,8 @@
 //! path (with and without the single-ray fallback for sparse packets) and the reference.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use octaray::render::caustic::CausticSettings;
+use octaray::render::options::PacketOptions;
 use octaray::render::packet::PacketRenderer;
 use octaray::render::{RenderSettings, reference};
 use octaray::scene::Scene;
@@ -18,8 +20,16 @@ fn bench(c: &mut Criterion) {
         b.iter(|| octaray::render::packet::render(&scene, &settings))
     });
     for lanes in [0, 1, 2, 4] {
-        let mut r = PacketRenderer::new(&scene, settings.camera.eye);
-        r.fallback_lanes = lanes;
+        let options = PacketOptions {
+            single_ray_lanes: lanes,
+            ..PacketOptions::default()
+        };
+        let r = PacketRenderer::with_options(
+            &scene,
+            settings.camera.eye,
+            &options,
+            &CausticSettings::default(),
+        );
         g.bench_function(format!("given256/fast_prebuilt_fallback{lanes}"), |b| {
             b.iter(|| r.render(&settings))
         });

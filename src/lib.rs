@@ -10,6 +10,7 @@ pub mod bvh;
 pub mod geometry;
 pub mod math;
 pub mod output;
+pub mod parallel;
 pub mod render;
 pub mod scene;
 pub mod tradeoff;

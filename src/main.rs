@@ -321,12 +321,15 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         width: size.width,
         height: size.height,
         camera: camera(args)?,
+        crop: None,
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
     let profile = load_profile("--profile", &args.profile)?;
-    let prepared = profile.prepare(&scene);
+    let start = std::time::Instant::now();
+    let prepared = profile.prepare(&scene, settings.camera.eye);
     let rendered = prepared.render(&settings);
+    let secs = start.elapsed().as_secs_f64();
     warn_f32_detail(&scene, &prepared);
     let written = match &args.output {
         Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
@@ -337,14 +340,13 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         message: e.to_string(),
     })?;
     let s = &rendered.stats;
-    let secs = s.elapsed.as_secs_f64();
     say!(
         "{name}: {}x{}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
         size.width,
         size.height,
         args.profile,
         args.threads.map_or_else(
-            || octaray::render::frame::threads().to_string(),
+            || octaray::parallel::threads().to_string(),
             |t| t.to_string()
         ),
         secs,
@@ -422,7 +424,7 @@ fn start(threads: Option<u32>) -> Result<(), Failure> {
     // and cost the given scene 3-4 % of its whole-process time.
     // (there, should its threads not start, the frame runs on this thread alone)
     let Some(n) = threads else { return Ok(()) };
-    octaray::render::frame::start_pool(n as usize).map_err(|e| Failure {
+    octaray::parallel::start_pool(n as usize).map_err(|e| Failure {
         code: 1,
         message: format!("cannot start {n} worker threads: {e}"),
     })
@@ -493,7 +495,7 @@ fn main() -> ExitCode {
             ..RenderArgs::default()
         }),
     });
-    if result.is_ok() && threads != Some(1) && octaray::render::frame::serial() {
+    if result.is_ok() && threads != Some(1) && octaray::parallel::serial() {
         say!(
             "octaray: warning: worker threads could not start (a process limit?); ran on one thread"
         );

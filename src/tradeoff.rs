@@ -156,6 +156,7 @@ impl CloneFrame for Rendered {
     fn clone_frame(&self) -> Rendered {
         Rendered {
             image: self.image.clone(),
+            rect: self.rect,
             stats: self.stats,
         }
     }
@@ -293,7 +294,7 @@ pub fn markdown(
          the same counted outside the masks of legitimate differences (silhouettes from the \
          reference's primary-hit ids, edges where the reference jumps by more than 24/255 to a \
          neighbour). Plot: {plot} (PSNR against time, log scale).\n",
-        crate::render::frame::threads()
+        crate::parallel::threads()
     );
     let table = |md: &mut String, rows: &[Row]| {
         let _ = writeln!(

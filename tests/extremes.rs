@@ -393,7 +393,7 @@ fn detail_below_f32_precision_is_flagged() {
     for s in [1e4, 1.0, 1e-4, 3e-6, 1e-6, 1e-7] {
         let t = transformed(&base, cam.eye, s, DVec3::ZERO);
         let reference = render("reference", &t, cam, size);
-        let prepared = fast.prepare(&t);
+        let prepared = fast.prepare(&t, cam.eye);
         let img = prepared.render(&settings(&t, cam, size)).image;
         let d = compare(&reference, &img, &reference_ids(&t, &cam, size));
         let detail = prepared.smallest_detail().expect("bounded objects");
@@ -909,7 +909,7 @@ fn objects_just_below_the_floor_stay_hidden() {
     // flying under the floor keeps its prepared renderer)
     for p in PROFILES {
         let profile = Profile::by_name(p).unwrap();
-        let prepared = profile.prepare(&s);
+        let prepared = profile.prepare(&s, Camera::default().eye);
         prepared.render(&settings(&s, Camera::default(), 32));
         let img = prepared.render(&settings(&s, below, 32)).image;
         let fresh = render(p, &s, below, 32);
@@ -1070,6 +1070,7 @@ fn plain_triangle_test_leaks_at_shared_edges_and_watertight_does_not() {
     use octaray::geometry::Hit1;
     use octaray::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
     use octaray::render::caustic::CausticSettings;
+    use octaray::render::options::{PacketOptions, TriangleTest};
     use octaray::render::packet::PacketRenderer;
     let v = [
         DVec3::new(0.13, 0.21, 5.0),
@@ -1106,7 +1107,15 @@ fn plain_triangle_test_leaks_at_shared_edges_and_watertight_does_not() {
         .collect();
     let mut escaped = Vec::new();
     for moller in [false, true] {
-        let r = PacketRenderer::with_options(&s, base, &CausticSettings::default(), moller);
+        let options = PacketOptions {
+            triangle_test: if moller {
+                TriangleTest::Moller
+            } else {
+                TriangleTest::Watertight
+            },
+            ..PacketOptions::default()
+        };
+        let r = PacketRenderer::with_options(&s, base, &options, &CausticSettings::default());
         let mut steps = Steps::default();
         let single = rays
             .iter()
@@ -1187,4 +1196,58 @@ fn camera_inside_a_prism_at_recursion_1000() {
     println!("inside the prism, level 1000: {d:?}; mean {mr:.2} (reference) {mf:.2} (fast)");
     assert!(d.psnr_db >= 22.0, "{d:?}");
     assert!((mf - mr).abs() <= 0.05 * mr, "mean {mf} vs {mr}");
+}
+
+/// The viewer's flight: a renderer prepared at the first frame's eye keeps its f32 frame
+/// near the camera (`Prepared::follow`, as the viewer calls it every frame). Flown 1e7
+/// units away to a copy of the given scene, its frames stay within the fast profile's
+/// bar of the reference (PSNR >= 40 dB, at most 1 % of pixels off by more than 8/255);
+/// the same renderer left centred on the first eye does not.
+#[test]
+fn a_flight_far_from_the_first_frame_stays_accurate() {
+    let given = Scene::given();
+    let shift = DVec3::new(1e7, 0.0, 0.0);
+    let far = transformed(&given, DVec3::ZERO, 1.0, shift);
+    let mut s = given.clone();
+    s.objects.extend(far.objects);
+    s.point_lights.extend(far.point_lights);
+    s.spot_lights.extend(far.spot_lights);
+    let fast = Profile::by_name("fast").unwrap();
+    let start = Camera::default();
+    let size = 96;
+    let mut followed = fast.prepare(&s, start.eye);
+    let left = fast.prepare(&s, start.eye);
+    let mut nearest = f64::INFINITY;
+    let mut moved = 0;
+    // away from the first scene, then towards the copy
+    let stops = (0..4)
+        .map(|k| start.eye + DVec3::new(50.0, 50.0, 0.0) * k as f64)
+        .chain(
+            (0..8).map(|k| start.eye + shift + DVec3::new(2000.0, 2000.0, 0.0) / (1 << k) as f64),
+        );
+    let mut last = None;
+    for eye in stops {
+        let cam = Camera { eye, ..start };
+        moved += followed.follow(eye, nearest) as u32;
+        let frame = followed.render(&settings(&s, cam, size));
+        nearest = frame.stats.nearest_hit;
+        last = Some((cam, frame.image));
+    }
+    let (cam, img) = last.unwrap();
+    assert!(moved >= 2, "the frame followed the camera ({moved} moves)");
+    let want = render("reference", &s, cam, size);
+    let ids = reference_ids(&s, &cam, size);
+    let d = compare(&want, &img, &ids);
+    println!("followed: {d:?}");
+    assert!(
+        d.psnr_db >= 40.0 && d.percent(d.off8) <= 1.0,
+        "followed: {d:?}"
+    );
+    let stale = left.render(&settings(&s, cam, size)).image;
+    let d = compare(&want, &stale, &ids);
+    println!("left at the first eye: {d:?}");
+    assert!(
+        d.psnr_db < 40.0 || d.percent(d.off8) > 1.0,
+        "a frame 1e7 from the camera should lose the view: {d:?}"
+    );
 }

@@ -15,6 +15,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use octaray::render::caustic::{CausticMap, CausticSettings};
+use octaray::render::options::PacketOptions;
 use octaray::render::packet::{self, PacketRenderer};
 use octaray::render::reference::{self, Reference};
 use octaray::render::{RenderSettings, RenderStats};
@@ -34,7 +35,7 @@ fn scene(text: &str) -> Scene {
 fn maps(s: &Scene, settings: &CausticSettings) -> Vec<(&'static str, CausticMap)> {
     let eye = RenderSettings::for_scene(s).camera.eye;
     let r = Reference::with_caustics(s, settings);
-    let p = PacketRenderer::with_caustics(s, eye, settings);
+    let p = PacketRenderer::with_options(s, eye, &PacketOptions::default(), settings);
     vec![
         ("reference", r.caustics().expect("reference map").clone()),
         ("packet", p.caustics().expect("packet map").clone()),

@@ -95,7 +95,7 @@ fn defaults() {
     assert_eq!(p.samples_per_pixel, 1);
     assert_eq!(p.resolution_scale, 1.0);
     assert_eq!(p.max_recursion, None);
-    assert!(p.shadow_any_hit);
+    assert!(p.packet.shadow_any_hit);
 }
 
 fn error(text: &str) -> String {
@@ -199,7 +199,7 @@ fn cli_refuses_a_bad_profile_with_exit_code_2() {
 fn prepared_reference_renders_exactly_the_reference() {
     let scene = Scene::given();
     let p = Profile::by_name("reference").unwrap();
-    let prepared = p.prepare(&scene);
+    let prepared = p.prepare(&scene, Camera::default().eye);
     for eye in [[100.0, 100.0, 50.0], [80.0, -60.0, 30.0]] {
         let mut s = RenderSettings::square(64);
         s.camera =
@@ -216,7 +216,7 @@ fn prepared_reference_renders_exactly_the_reference() {
 fn prepared_packet_reuses_its_bvh() {
     let scene = Scene::given();
     let p = Profile::by_name("fast").unwrap();
-    let prepared = p.prepare(&scene);
+    let prepared = p.prepare(&scene, Camera::default().eye);
     let s = RenderSettings::square(64);
     assert_eq!(prepared.render(&s).image, p.render(&scene, &s).image);
     let mut moved = RenderSettings::square(64);

@@ -205,7 +205,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
         quadrics: a.quadrics + b.quadrics,
     };
     // (on the calling thread where worker threads cannot start)
-    if crate::render::frame::parallel() {
+    if crate::parallel::parallel() {
         t_out
             .par_chunks_mut(CHUNK)
             .enumerate()
@@ -305,7 +305,7 @@ pub fn run(
         || mesh.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    crate::render::frame::with_threads(Some(threads), || {
+    crate::parallel::with_threads(Some(threads), || {
         let (bvh, build_ms) = timed_build(&tris);
         let _ = writeln!(
             log,

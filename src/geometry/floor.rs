@@ -3,12 +3,12 @@
 use glam::DVec3;
 
 use glam::Vec3;
-use wide::f32x8;
+use wide::{f32x8, f64x4};
 
-use super::{Surface32, SurfacePoint};
+use super::{Surface8, Surface32, SurfacePoint};
 use crate::math::Ray;
 use crate::math::float::gamma;
-use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, gamma32};
+use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
 use crate::scene::Floor;
 
 // ---------------------------------------------------------------- reference (f64)
@@ -67,7 +67,8 @@ pub fn surface_ref(ray: &Ray, t: f64) -> SurfacePoint {
 
 // ---------------------------------------------------------------- fast path (f32)
 
-/// The floor in the fast path's f32 frame: the plane z = `z`, x in [x0, x1], y in [y0, y1].
+/// The floor in the fast path's f32 frame: the plane z = `z`, x in [x0, x1], y in [y0, y1],
+/// in the frame whose origin is the world point `base`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Floor32 {
     pub z: f32,
@@ -75,6 +76,7 @@ pub struct Floor32 {
     pub x1: f32,
     pub y0: f32,
     pub y1: f32,
+    pub base: DVec3,
 }
 
 impl Floor32 {
@@ -87,6 +89,7 @@ impl Floor32 {
             x1: (h - base.x) as f32,
             y0: (-h - base.y) as f32,
             y1: (h - base.y) as f32,
+            base,
         }
     }
 
@@ -149,11 +152,90 @@ impl Floor32 {
             err: Vec3::new(e.x, e.y, 0.0),
         }
     }
+
+    /// Packet twin of [`Floor32::surface_1`], lane for lane the same operations.
+    #[inline]
+    pub fn surface_x8(&self, r: &RayPacket8, t: f32x8) -> Surface8 {
+        let d = r.dir * t;
+        let p = r.origin + d;
+        let e = (r.origin.abs() + d.abs()) * f32x8::splat(gamma32(3));
+        let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
+        Surface8 {
+            point: Vec3x8::new(p.x, p.y, f32x8::splat(self.z)),
+            normal: Vec3x8::new(zero, zero, one),
+            err: Vec3x8::new(e.x, e.y, zero),
+        }
+    }
+
+    /// Lanes whose point (x, y) of the frame lies on a white tile: [`Floor::color_at`]
+    /// four lanes at a time in f64, with the same tile indices, whose parity is exact
+    /// while they are below 2^53 (every point of the floor).
+    #[inline]
+    pub fn white_x8(&self, x: f32x8, y: f32x8) -> Mask8 {
+        let (x, y) = (x.to_array(), y.to_array());
+        let tile = |v: [f32; 4], b: f64| {
+            let w = f64x4::new(v.map(|c| c as f64)) + f64x4::splat(b);
+            ((w + f64x4::splat(Floor::HALF_WIDTH)) / f64x4::splat(Floor::TILE)).floor()
+        };
+        let mut bits = 0;
+        for h in 0..2 {
+            let quad = |a: &[f32; 8]| [a[4 * h], a[4 * h + 1], a[4 * h + 2], a[4 * h + 3]];
+            // i + j is an exact integer: tiles of the finite floor are a few hundred
+            let s = tile(quad(&x), self.base.x) + tile(quad(&y), self.base.y);
+            let odd = s - f64x4::splat(2.0) * (s * f64x4::splat(0.5)).floor();
+            bits |= odd.simd_eq(f64x4::ZERO).to_bitmask() << (4 * h);
+        }
+        Mask8::from_bits(bits)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn checker_lanes_match_color_at_at_tile_edges_and_off_origin() {
+        // points on, just beside and between tile edges, in frames far from the origin
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f64 / (1u64 << 24) as f64
+        };
+        for base in [
+            DVec3::ZERO,
+            DVec3::new(123.25, -77.5, 9.0),
+            DVec3::new(-480.0, 499.0, 0.0),
+        ] {
+            let floor = Floor32::new(base);
+            for _ in 0..200 {
+                let mut xs = [0.0f32; 8];
+                let mut ys = [0.0f32; 8];
+                for k in 0..8 {
+                    let edge = |r: f64| (r * 50.0).floor() * 20.0 - 500.0;
+                    let (x, y) = if k % 2 == 0 {
+                        (edge(rnd()), edge(rnd()) + (rnd() - 0.5) * 1e-3)
+                    } else {
+                        (rnd() * 1000.0 - 500.0, rnd() * 1000.0 - 500.0)
+                    };
+                    xs[k] = (x - base.x) as f32;
+                    ys[k] = (y - base.y) as f32;
+                }
+                let white = floor.white_x8(f32x8::new(xs), f32x8::new(ys));
+                for k in 0..8 {
+                    let c = Floor::color_at(xs[k] as f64 + base.x, ys[k] as f64 + base.y);
+                    assert_eq!(
+                        white.lane(k),
+                        c == DVec3::ONE,
+                        "({}, {}) + {base}",
+                        xs[k],
+                        ys[k]
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn hits_from_above_and_below_and_misses_outside() {

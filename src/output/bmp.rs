@@ -41,7 +41,7 @@ pub fn encode(fb: &Framebuffer) -> Vec<u8> {
                 dst.copy_from_slice(&[p[2], p[1], p[0]]);
             }
         };
-        if crate::render::frame::parallel() {
+        if crate::parallel::parallel() {
             out[HEADER..]
                 .par_chunks_mut(stride)
                 .enumerate()

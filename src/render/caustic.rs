@@ -583,7 +583,7 @@ impl CausticMap {
             }
             (out, rays)
         };
-        let results: Vec<(Vec<Photon>, u64)> = if super::frame::parallel() {
+        let results: Vec<(Vec<Photon>, u64)> = if crate::parallel::parallel() {
             jobs.par_iter().map(job).collect()
         } else {
             jobs.iter().map(job).collect()

@@ -1,111 +1,343 @@
-//! Frame driver: splits the image into bands of rows and renders them on rayon's pool,
-//! with an optional progress bar.
+//! The frame loop: the one loop over a rectangle of pixels that every renderer and every
+//! use goes through (whole frames, supersampled frames, the viewer's reduced frames,
+//! crops and tiles of a frame).
+//!
+//! A frame's camera samples lie on the pixel centres of the `n`×-resolution grid of its
+//! camera ([`Samples`]): one per pixel at `n` = 1, else the `n × n` stratified sub-pixel
+//! centres. The loop splits the rectangle into bands of rows over rayon's pool and walks
+//! each band in blocks of 4 × 2 samples ([`SampleBlock`]), which a [`SampleTracer`]
+//! traces; a pixel's samples are summed in one fixed order (row by row, left to right),
+//! so its value depends on the pixel alone, never on the rectangle, band or thread that
+//! rendered it. Every random number a tracer draws derives from the scene and the
+//! sample's position on the sample grid (wavelengths per sample, photons per scene).
 
 use std::io::IsTerminal;
-use std::sync::{Mutex, OnceLock};
-use std::time::Instant;
+use std::sync::Mutex;
 
+use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use super::{RenderSettings, RenderStats, Rendered};
-use crate::output::Framebuffer;
+use super::RenderStats;
+use crate::parallel::{parallel, with_threads};
+use crate::scene::Camera;
+use crate::scene::camera::PixelGrid;
 
-/// Renders `settings.width × settings.height` pixels in bands of `band` rows. `render_band`
-/// gets the first row's index and the band's pixels (row-major) and returns its counters.
-pub fn render_bands<F>(settings: &RenderSettings, band: u32, render_band: F) -> Rendered
-where
-    F: Fn(u32, &mut [[u8; 3]]) -> RenderStats + Sync,
-{
-    let start = Instant::now();
-    let mut image = Framebuffer::new(settings.width, settings.height);
-    let total = Mutex::new(RenderStats::default());
-    let bar = if settings.progress && std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(settings.height as u64);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} rows, eta {eta}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
-    let work = |pixels: &mut [[u8; 3]]| {
-        let rows = settings.width as usize * band as usize;
-        let one = |(k, band_pixels): (usize, &mut [[u8; 3]])| {
-            let stats = render_band(k as u32 * band, band_pixels);
-            total.lock().expect("no panics while holding").add(&stats);
-            bar.inc((band_pixels.len() / settings.width as usize) as u64);
-        };
-        if parallel() {
-            pixels.par_chunks_mut(rows).enumerate().for_each(one);
-        } else {
-            pixels.chunks_mut(rows).enumerate().for_each(one);
-        }
-    };
-    with_threads(settings.threads, || work(&mut image.pixels));
-    bar.finish_and_clear();
-    let mut stats = total.into_inner().expect("no panics while holding");
-    stats.elapsed = start.elapsed();
-    Rendered { image, stats }
+/// A half-open rectangle of pixels, [x0, x1) × [y0, y1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PixelRect {
+    pub x0: u32,
+    pub x1: u32,
+    pub y0: u32,
+    pub y1: u32,
 }
 
-/// Runs `f` on `threads` worker threads: rayon's current pool when it has that many
-/// (the command line sizes the global pool by `--threads`) or none is asked for, else
-/// a pool of its own. Should that pool fail to start (a process limit), `f` runs on
-/// the current pool: the same result, other threads.
-pub fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> R {
-    match threads {
-        Some(n) if n != self::threads() => {
-            match rayon::ThreadPoolBuilder::new().num_threads(n).build() {
-                Ok(pool) => pool.install(f),
-                Err(_) => f(),
-            }
+impl PixelRect {
+    /// The whole of a `width × height` image.
+    pub fn full(width: u32, height: u32) -> PixelRect {
+        PixelRect {
+            x0: 0,
+            x1: width,
+            y0: 0,
+            y1: height,
         }
-        _ => f(),
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.width() == 0 || self.height() == 0
+    }
+
+    /// Whether `self` lies inside `outer`.
+    pub fn inside(&self, outer: &PixelRect) -> bool {
+        outer.x0 <= self.x0 && self.x1 <= outer.x1 && outer.y0 <= self.y0 && self.y1 <= outer.y1
+    }
+
+    /// Pixel count.
+    pub fn area(&self) -> u64 {
+        self.width() as u64 * self.height() as u64
     }
 }
 
-/// Whether rayon's global pool runs: `Some` once [`start_pool`] or [`parallel`] has
-/// tried to start it.
-static POOL: OnceLock<bool> = OnceLock::new();
-
-/// Starts rayon's global pool with `threads` workers (the command line's `--threads`),
-/// before any parallel loop. One thread needs no worker: should it not start, the
-/// parallel loops run on the calling thread.
-pub fn start_pool(threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
-    let started = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build_global();
-    let _ = POOL.set(started.is_ok());
-    if threads == 1 { Ok(()) } else { started }
+/// The camera samples of a frame: `n × n` per pixel, the pixel centres of the
+/// `n`×-resolution grid of the same camera (at `n` = 1, the pixel centres).
+#[derive(Clone, Copy, Debug)]
+pub struct Samples {
+    /// The sample grid, in f64.
+    pub grid: PixelGrid,
+    /// Samples per pixel along each axis.
+    pub n: u32,
 }
 
-/// Whether a parallel loop may run on rayon's pools: on a worker of one, or when the
-/// global pool runs, which is started here at the first such loop (where rayon would
-/// start it). Where its threads cannot start (a process or container limit), rayon
-/// would panic at every parallel loop: they run on the calling thread instead, and
-/// [`serial`] tells.
-pub fn parallel() -> bool {
-    rayon::current_thread_index().is_some()
-        || *POOL.get_or_init(|| rayon::ThreadPoolBuilder::new().build_global().is_ok())
+impl Samples {
+    /// The samples of a `width × height` frame of `camera`, `n × n` per pixel.
+    pub fn new(camera: &Camera, width: u32, height: u32, n: u32) -> Samples {
+        Samples {
+            grid: camera.pixel_grid(width * n, height * n),
+            n,
+        }
+    }
 }
 
-/// Whether parallel loops have been running on the calling thread because the worker
-/// threads could not start.
-pub fn serial() -> bool {
-    POOL.get() == Some(&false)
+/// Up to 4 × 2 neighbouring samples: lane k is sample (x + k % 4, y + k / 4) of the
+/// sample grid, for the lanes set in `bits`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleBlock {
+    pub x: u32,
+    pub y: u32,
+    pub bits: u32,
 }
 
-/// The threads parallel loops run on here: the current pool's, or 1 where its threads
-/// could not start ([`parallel`]).
-pub fn threads() -> usize {
-    if parallel() {
-        rayon::current_num_threads()
-    } else {
-        1
+/// What a renderer gives the frame loop: the colours of a block of camera samples.
+pub trait SampleTracer: Sync {
+    /// Per-band working memory (reused from block to block).
+    type Scratch: Default;
+    /// The colours of a block, in the renderer's own precision.
+    type Colors: SampleColors;
+    /// Traces the samples of `block` (lanes outside `block.bits` are black).
+    fn trace_block(
+        &self,
+        samples: &Samples,
+        block: SampleBlock,
+        scratch: &mut Self::Scratch,
+        stats: &mut RenderStats,
+    ) -> Self::Colors;
+}
+
+/// The colours of a block of eight samples, each channel in [0, 1].
+pub trait SampleColors {
+    /// A sum of samples in the renderer's precision.
+    type Sum: Copy + Default + Send + Sync;
+    /// Each lane quantized as a one-sample pixel.
+    fn rgb8(&self) -> [[u8; 3]; 8];
+    /// Lane `k` as a sum of one sample.
+    fn lane(&self, k: usize) -> Self::Sum;
+    /// `sum + c`.
+    fn add(sum: Self::Sum, c: Self::Sum) -> Self::Sum;
+    /// The pixel of `count` samples summed in `sum`, quantized.
+    fn resolve(sum: Self::Sum, count: u32) -> [u8; 3];
+    /// The pixel of `count` samples summed in `sum`, linear.
+    fn linear(sum: Self::Sum, count: u32) -> DVec3;
+}
+
+/// The pixels the frame loop writes: 8-bit RGB (the image) or linear colour.
+pub trait PixelOut: Copy + Default + Send + Sync {
+    /// Each lane of a block of one-sample pixels.
+    fn block<C: SampleColors>(colors: &C) -> [Self; 8];
+    /// The pixel of `count` samples summed in `sum`.
+    fn resolve<C: SampleColors>(sum: C::Sum, count: u32) -> Self;
+}
+
+impl PixelOut for [u8; 3] {
+    #[inline]
+    fn block<C: SampleColors>(colors: &C) -> [Self; 8] {
+        colors.rgb8()
+    }
+
+    #[inline]
+    fn resolve<C: SampleColors>(sum: C::Sum, count: u32) -> Self {
+        C::resolve(sum, count)
+    }
+}
+
+impl PixelOut for DVec3 {
+    #[inline]
+    fn block<C: SampleColors>(colors: &C) -> [Self; 8] {
+        std::array::from_fn(|k| C::linear(colors.lane(k), 1))
+    }
+
+    #[inline]
+    fn resolve<C: SampleColors>(sum: C::Sum, count: u32) -> Self {
+        C::linear(sum, count)
+    }
+}
+
+/// How a frame is run: threads and progress.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Run {
+    /// Worker threads; `None`: rayon's current pool.
+    pub threads: Option<usize>,
+    /// Draw a progress bar on stderr (when it is a terminal).
+    pub progress: bool,
+}
+
+/// Pixel rows per band: two sample rows at least (one packet row) and four at least
+/// (parallel granularity), so `n = 1` takes four rows, larger grids fewer.
+fn band_rows(n: u32) -> u32 {
+    (1..=4)
+        .find(|r| (r * n).is_multiple_of(2) && r * n >= 4)
+        .unwrap_or(4)
+}
+
+/// The lanes of the 4 × 2 block at (x, y) of a `width × rows` grid of samples that lie
+/// inside it.
+#[inline]
+fn block_bits(x: usize, y: usize, width: usize, rows: usize) -> u32 {
+    if x + 4 <= width && y + 2 <= rows {
+        return 0xff;
+    }
+    (0..8)
+        .filter(|&l| x + l % 4 < width && y + l / 4 < rows)
+        .fold(0, |b, l| b | 1 << l)
+}
+
+/// Renders the pixels `rect` of the frame whose samples are `samples` into `out` (the
+/// rectangle's pixels, row-major), and returns the frame's counters.
+pub fn render_rect<T: SampleTracer, P: PixelOut>(
+    tracer: &T,
+    samples: &Samples,
+    rect: PixelRect,
+    out: &mut [P],
+    run: Run,
+) -> RenderStats {
+    let width = rect.width() as usize;
+    assert_eq!(out.len(), width * rect.height() as usize, "output size");
+    if out.is_empty() {
+        return RenderStats::default();
+    }
+    let band = band_rows(samples.n);
+    let total = Mutex::new(RenderStats::default());
+    let bar = progress_bar(run.progress, rect.height());
+    let one = |(k, pixels): (usize, &mut [P])| {
+        let y0 = rect.y0 + k as u32 * band;
+        let stats = render_band(tracer, samples, rect.x0, y0, width, pixels);
+        total.lock().expect("no panics while holding").add(&stats);
+        bar.inc((pixels.len() / width) as u64);
+    };
+    let rows = width * band as usize;
+    with_threads(run.threads, || {
+        if parallel() {
+            out.par_chunks_mut(rows).enumerate().for_each(one);
+        } else {
+            out.chunks_mut(rows).enumerate().for_each(one);
+        }
+    });
+    bar.finish_and_clear();
+    total.into_inner().expect("no panics while holding")
+}
+
+/// One band: the pixel rows `y0..` (as many as `pixels` holds) of columns
+/// `x0..x0 + width`.
+fn render_band<T: SampleTracer, P: PixelOut>(
+    tracer: &T,
+    samples: &Samples,
+    x0: u32,
+    y0: u32,
+    width: usize,
+    pixels: &mut [P],
+) -> RenderStats {
+    let mut stats = RenderStats::default();
+    let mut scratch = T::Scratch::default();
+    let rows = pixels.len() / width;
+    let n = samples.n as usize;
+    if n == 1 {
+        for py in (0..rows).step_by(2) {
+            for px in (0..width).step_by(4) {
+                let bits = block_bits(px, py, width, rows);
+                let block = SampleBlock {
+                    x: x0 + px as u32,
+                    y: y0 + py as u32,
+                    bits,
+                };
+                let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
+                let p = P::block(&c);
+                if bits == 0xff {
+                    for row in 0..2 {
+                        let at = (py + row) * width + px;
+                        pixels[at..at + 4].copy_from_slice(&p[4 * row..4 * row + 4]);
+                    }
+                } else {
+                    for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
+                        pixels[(py + lane / 4) * width + px + lane % 4] = p[lane];
+                    }
+                }
+            }
+        }
+        stats.primary_rays += pixels.len() as u64;
+        return stats;
+    }
+    // every sample of the band, then each pixel's sum in one order
+    let (sw, sh) = (width * n, rows * n);
+    let mut band = vec![<T::Colors as SampleColors>::Sum::default(); sw * sh];
+    for sy in (0..sh).step_by(2) {
+        for sx in (0..sw).step_by(4) {
+            let bits = block_bits(sx, sy, sw, sh);
+            let block = SampleBlock {
+                x: x0 * n as u32 + sx as u32,
+                y: y0 * n as u32 + sy as u32,
+                bits,
+            };
+            let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
+            for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
+                band[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
+            }
+        }
+    }
+    let count = (n * n) as u32;
+    for (i, px) in pixels.iter_mut().enumerate() {
+        let (r, x) = (i / width, i % width);
+        let mut sum = Default::default();
+        for b in 0..n {
+            let row = &band[(r * n + b) * sw + x * n..][..n];
+            for &s in row {
+                sum = T::Colors::add(sum, s);
+            }
+        }
+        *px = P::resolve::<T::Colors>(sum, count);
+    }
+    stats.primary_rays += (sw * sh) as u64;
+    stats
+}
+
+fn progress_bar(show: bool, rows: u32) -> ProgressBar {
+    if !(show && std::io::stderr().is_terminal()) {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(rows as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} rows, eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bands_hold_whole_packet_rows() {
+        for n in 1..=8 {
+            let r = band_rows(n);
+            assert!(
+                r >= 1 && (r * n).is_multiple_of(2) && r * n >= 4,
+                "n = {n}: {r} rows"
+            );
+        }
+        assert_eq!(band_rows(1), 4);
+    }
+
+    #[test]
+    fn block_bits_cover_exactly_the_grid() {
+        for (w, h) in [(1, 1), (3, 1), (4, 2), (5, 3), (8, 4)] {
+            let mut seen = vec![0u32; w * h];
+            for y in (0..h).step_by(2) {
+                for x in (0..w).step_by(4) {
+                    let b = block_bits(x, y, w, h);
+                    for l in (0..8).filter(|l| b >> l & 1 == 1) {
+                        seen[(y + l / 4) * w + x + l % 4] += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&c| c == 1), "{w}x{h}: {seen:?}");
+        }
     }
 }

@@ -3,12 +3,14 @@
 //!
 //! - [`reference`]: f64, one ray at a time, every object tested. The oracle.
 //! - [`packet`]: f32, 8-ray packets through a BVH. The fast path and the default.
-//! - [`frame`]: splits a frame into bands of rows over rayon.
+//! - [`frame`]: the one frame loop over a rectangle of pixels, which both run.
+//! - [`prepared`]: a profile applied to a scene, picking the renderer once.
 //! - [`precision`]: where the packet path's f32 stops resolving a scene.
 
 pub mod caustic;
 pub mod diff;
 pub mod frame;
+pub mod options;
 pub mod packet;
 pub mod precision;
 pub mod prepared;
@@ -18,15 +20,19 @@ pub mod spectral;
 
 use std::time::Duration;
 
+pub use frame::PixelRect;
+
 use crate::output::Framebuffer;
 use crate::scene::{Camera, Scene};
 
-/// What to render: image size, camera and threads.
+/// What to render: image size, camera, the part of the image, and threads.
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
     pub width: u32,
     pub height: u32,
     pub camera: Camera,
+    /// The pixels to render (the image returned is this rectangle); `None`: all.
+    pub crop: Option<PixelRect>,
     /// Worker threads; `None` uses rayon's default (one per core).
     pub threads: Option<usize>,
     /// Show a progress bar on stderr (only drawn when stderr is a terminal).
@@ -40,6 +46,7 @@ impl RenderSettings {
             width: size,
             height: size,
             camera: Camera::default(),
+            crop: None,
             threads: None,
             progress: false,
         }
@@ -49,10 +56,24 @@ impl RenderSettings {
     pub fn for_scene(scene: &Scene) -> RenderSettings {
         RenderSettings::square(scene.pixels)
     }
+
+    /// The rectangle rendered: the crop, or the whole image.
+    pub fn rect(&self) -> PixelRect {
+        self.crop
+            .unwrap_or_else(|| PixelRect::full(self.width, self.height))
+    }
+
+    /// How the frame loop runs.
+    pub fn run(&self) -> frame::Run {
+        frame::Run {
+            threads: self.threads,
+            progress: self.progress,
+        }
+    }
 }
 
 /// Counters of a finished frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderStats {
     /// Camera rays.
     pub primary_rays: u64,
@@ -68,7 +89,24 @@ pub struct RenderStats {
     /// Spotlight cone tests (one per shading point and spotlight). Zero without
     /// spotlights.
     pub cone_tests: u64,
+    /// Distance to the nearest thing a camera ray hit (infinite when none did).
+    pub nearest_hit: f64,
     pub elapsed: Duration,
+}
+
+impl Default for RenderStats {
+    fn default() -> Self {
+        RenderStats {
+            primary_rays: 0,
+            shadow_rays: 0,
+            reflection_rays: 0,
+            refraction_rays: 0,
+            quadric_tests: 0,
+            cone_tests: 0,
+            nearest_hit: f64::INFINITY,
+            elapsed: Duration::ZERO,
+        }
+    }
 }
 
 impl RenderStats {
@@ -83,11 +121,32 @@ impl RenderStats {
         self.refraction_rays += o.refraction_rays;
         self.quadric_tests += o.quadric_tests;
         self.cone_tests += o.cone_tests;
+        self.nearest_hit = self.nearest_hit.min(o.nearest_hit);
     }
 }
 
-/// A finished frame and its counters.
+/// A finished frame (or the rectangle of it that was asked for) and its counters.
 pub struct Rendered {
     pub image: Framebuffer,
+    /// Where `image` lies in the frame.
+    pub rect: PixelRect,
     pub stats: RenderStats,
+}
+
+/// A renderer with its settings fixed, as [`prepared::Prepared`] picks it: renders
+/// frames of `n × n` samples per pixel (the one dynamic call per frame).
+pub trait FrameRenderer: Sync {
+    fn render(&self, settings: &RenderSettings, n: u32) -> Rendered;
+}
+
+impl<T: frame::SampleTracer> FrameRenderer for T {
+    fn render(&self, settings: &RenderSettings, n: u32) -> Rendered {
+        let start = std::time::Instant::now();
+        let rect = settings.rect();
+        let mut image = Framebuffer::new(rect.width(), rect.height());
+        let samples = frame::Samples::new(&settings.camera, settings.width, settings.height, n);
+        let mut stats = frame::render_rect(self, &samples, rect, &mut image.pixels, settings.run());
+        stats.elapsed = start.elapsed();
+        Rendered { image, rect, stats }
+    }
 }

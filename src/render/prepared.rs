@@ -1,39 +1,36 @@
-//! A profile applied to one scene: the per-scene data built once, any number of frames.
+//! A profile applied to one scene: the renderer it picks, built once, then any number of
+//! frames.
 //!
-//! The frame-level knobs of a [`Profile`] live here, the same for both paths and each
-//! chosen once per frame:
+//! The frame-level knobs of a [`Profile`] are applied here, the same on both paths:
 //!
+//! - `samples_per_pixel` = n²: the frame loop's n × n stratified samples per pixel
+//!   ([`super::frame`]); at n = 1 one ray through each pixel centre, the spec's image.
 //! - `resolution_scale`: the frame is rendered at the scaled size, then upscaled
 //!   (bilinear) to the requested one.
-//! - `samples_per_pixel` = n²: the frame is traced on the n×-resolution pixel grid of the
-//!   same camera, whose pixel centres are exactly the n × n stratified sub-pixel centres
-//!   of the requested pixels; each pixel averages its n² samples in linear [0, 1] and is
-//!   quantized once. Chosen over a sub-pixel offset in `RenderSettings` because it needs
-//!   no change to either renderer's ray generation and keeps packets of neighbouring
-//!   samples coherent; at n = 1 the renderers' own frame loops run, so the reference
-//!   image is exactly the spec's.
 //! - `max_recursion`: caps the recursion level the renderer is built with.
 //! - `photons`: the caustic photon count (scenes with glass only).
+//!
+//! The packet path works in an f32 frame whose origin is set here explicitly (the
+//! camera's eye for a single render; [`Prepared::rebase`] moves it, as the viewer does
+//! when its camera has flown far from it).
 
-use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::DVec3;
 
 use super::caustic::CausticSettings;
-use super::frame::render_bands;
-use super::packet::{BAND_ROWS, CameraPackets, PacketRenderer};
-use super::profile::{Profile, RayOffset, RenderPath, TriangleTest};
+use super::packet::PacketRenderer;
+use super::profile::{Profile, RenderPath};
 use super::reference::Reference;
-use super::{RenderSettings, RenderStats, Rendered};
-use crate::bvh::Steps;
-use crate::math::Ray;
-use crate::math::packet::Mask8;
+use super::{FrameRenderer, PixelRect, RenderSettings, Rendered};
 use crate::output::Framebuffer;
-use crate::output::framebuffer::quantize;
 use crate::scene::Scene;
 
-/// A profile prepared for one scene (see [`Profile::prepare`]).
+/// How far, in multiples of the view's nearest hit distance, the eye may move from the
+/// packet path's f32 frame origin before [`Prepared::follow`] re-centres the frame.
+pub const REBASE_RATIO: f64 = 4.0;
+
+/// A profile prepared for one scene.
 pub struct Prepared<'a> {
     profile: Profile,
     scene: &'a Scene,
@@ -44,29 +41,42 @@ pub struct Prepared<'a> {
 enum Engine<'a> {
     /// The reference, with its photon map if the scene has glass.
     Reference(Box<Reference<'a>>),
-    /// The packet renderer, built at the first frame in an f32 frame centred on that
-    /// frame's eye (later frames reuse it from any camera).
-    Packet(Box<OnceLock<PacketRenderer>>),
+    /// The packet renderer in its f32 frame.
+    Packet(Box<PacketRenderer>),
+}
+
+impl Profile {
+    /// Builds what this profile needs for `scene` (the packet path's BVH in an f32 frame
+    /// centred on `origin`, the photon map of a scene with glass) for any number of
+    /// frames.
+    pub fn prepare<'a>(&self, scene: &'a Scene, origin: DVec3) -> Prepared<'a> {
+        Prepared::new(self, scene, origin)
+    }
+
+    /// Renders one frame (prepares the scene first, centred on the frame's eye; prefer
+    /// [`Profile::prepare`] for many frames of one scene).
+    pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
+        self.prepare(scene, settings.camera.eye).render(settings)
+    }
 }
 
 impl<'a> Prepared<'a> {
-    /// Builds what `profile` needs for `scene`: the reference (and its photon map) now,
-    /// the packet BVH at the first frame.
-    pub fn new(profile: &Profile, scene: &'a Scene) -> Prepared<'a> {
-        let path = profile.path;
-        let engine = match path {
-            RenderPath::Reference => {
-                let caustic = CausticSettings {
-                    photons: profile.photons,
-                    ..CausticSettings::default()
-                };
-                let mut r = Reference::with_caustics(scene, &caustic);
-                if let Some(cap) = profile.max_recursion {
-                    r.cap_recursion(cap);
-                }
-                Engine::Reference(Box::new(r))
-            }
-            RenderPath::Packet => Engine::Packet(Box::default()),
+    /// Builds what `profile` needs for `scene`; the packet path's f32 frame is centred
+    /// on `origin` (use the camera's eye).
+    pub fn new(profile: &Profile, scene: &'a Scene, origin: DVec3) -> Prepared<'a> {
+        let caustic = CausticSettings {
+            photons: profile.photons,
+            ..CausticSettings::default()
+        };
+        let cap = profile.max_recursion.unwrap_or(u32::MAX);
+        let engine = match profile.path {
+            RenderPath::Reference => Engine::Reference(Box::new(
+                Reference::with_caustics(scene, &caustic).cap_recursion(cap),
+            )),
+            RenderPath::Packet => Engine::Packet(Box::new(
+                PacketRenderer::with_options(scene, origin, &profile.packet, &caustic)
+                    .cap_recursion(cap),
+            )),
         };
         Prepared {
             profile: profile.clone(),
@@ -88,13 +98,44 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// On the packet path, once a frame has built its renderer: the scene's smallest
-    /// object against its distance ([`super::precision`]).
+    /// The packet path's f32 frame origin (world); `None` on the reference.
+    pub fn origin(&self) -> Option<DVec3> {
+        match &self.engine {
+            Engine::Packet(p) => Some(p.base()),
+            Engine::Reference(_) => None,
+        }
+    }
+
+    /// Moves the packet path's f32 frame to `origin`: rebuilds its BVH and tables there
+    /// (the reference has no frame: nothing to do).
+    pub fn rebase(&mut self, origin: DVec3) {
+        if matches!(self.engine, Engine::Packet(_)) {
+            *self = Prepared::new(&self.profile, self.scene, origin);
+        }
+    }
+
+    /// Re-centres the packet path's f32 frame on `eye` when the eye has moved from its
+    /// origin by more than [`REBASE_RATIO`] times `nearest`, the distance to the nearest
+    /// thing the last frame's camera rays hit (the scale the view must resolve): points
+    /// in view then carry at most 1 + [`REBASE_RATIO`] times the rounding they would
+    /// in a frame centred on the eye. Returns whether it moved.
+    pub fn follow(&mut self, eye: DVec3, nearest: f64) -> bool {
+        match self.origin() {
+            Some(origin) if origin.distance(eye) > REBASE_RATIO * nearest => {
+                self.rebase(eye);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// On the packet path: the scene's smallest object against its distance
+    /// ([`super::precision`]).
     pub fn smallest_detail(&self) -> Option<super::precision::Detail> {
-        let Engine::Packet(cell) = &self.engine else {
-            return None;
-        };
-        cell.get()?.smallest_detail()
+        match &self.engine {
+            Engine::Packet(p) => p.smallest_detail(),
+            Engine::Reference(_) => None,
+        }
     }
 
     /// [`Prepared::smallest_detail`] where f32 loses it
@@ -103,166 +144,57 @@ impl<'a> Prepared<'a> {
         self.smallest_detail().filter(|d| d.below_f32())
     }
 
-    fn packet(&self, eye: DVec3) -> &PacketRenderer {
-        let Engine::Packet(cell) = &self.engine else {
-            unreachable!("packet() on the reference engine")
-        };
-        cell.get_or_init(|| {
-            let caustic = CausticSettings {
-                photons: self.profile.photons,
-                ..CausticSettings::default()
-            };
-            let moller = self.profile.triangle_test == TriangleTest::Moller;
-            let mut r = match self.profile.max_recursion {
-                Some(cap) if cap < self.scene.recursion_level => {
-                    let capped = Scene {
-                        recursion_level: cap,
-                        ..self.scene.clone()
-                    };
-                    PacketRenderer::with_options(&capped, eye, &caustic, moller)
-                }
-                _ => PacketRenderer::with_options(self.scene, eye, &caustic, moller),
-            };
-            r.fallback_lanes = self.profile.single_ray_lanes;
-            r.shadow_any_hit = self.profile.shadow_any_hit;
-            r.offset_epsilon = match self.profile.ray_offset {
-                RayOffset::ErrorBound => None,
-                RayOffset::Epsilon(e) => Some(e),
-            };
-            r
-        })
-    }
-
-    /// Renders one frame. `stats.elapsed` covers the frame (and, on the first packet
-    /// frame, the BVH build), not the photon pass.
+    /// Renders one frame, or the rectangle `settings.crop` of it (the same pixels as the
+    /// whole frame's). `stats.elapsed` covers the frame, not the preparation.
     pub fn render(&self, settings: &RenderSettings) -> Rendered {
         let start = Instant::now();
-        let scale = self.profile.resolution_scale;
-        let scaled = |v: u32| ((v as f64 * scale).round() as u32).clamp(1, v.max(1));
-        let inner = RenderSettings {
-            width: scaled(settings.width),
-            height: scaled(settings.height),
-            ..settings.clone()
-        };
         let n = self.profile.samples_per_axis();
-        let mut out = match (&self.engine, n) {
-            (Engine::Reference(r), 1) => super::reference::render_frame(r, &inner),
-            (Engine::Reference(r), n) => reference_supersampled(r, &inner, n),
-            (Engine::Packet(_), 1) => self.packet(settings.camera.eye).render(&inner),
-            (Engine::Packet(_), n) => {
-                let p = self.packet(settings.camera.eye);
-                // the packet knobs pick one compiled instance, once per frame
-                crate::with_packet_knobs!(p, supersampled(&inner, n))
+        let packet;
+        let frames: &dyn FrameRenderer = match &self.engine {
+            Engine::Reference(r) => &**r,
+            Engine::Packet(p) => {
+                packet = p.frames();
+                &*packet
             }
         };
-        if (inner.width, inner.height) != (settings.width, settings.height) {
-            out.image = upscale_bilinear(&out.image, settings.width, settings.height);
-        }
+        let scale = self.profile.resolution_scale;
+        let scaled = |v: u32| ((v as f64 * scale).round() as u32).clamp(1, v.max(1));
+        let (w, h) = (scaled(settings.width), scaled(settings.height));
+        let mut out = if (w, h) == (settings.width, settings.height) {
+            frames.render(settings, n)
+        } else {
+            // the whole frame at the scaled size, upscaled, then the crop cut out
+            let inner = RenderSettings {
+                width: w,
+                height: h,
+                crop: None,
+                ..settings.clone()
+            };
+            let small = frames.render(&inner, n);
+            let full = upscale_bilinear(&small.image, settings.width, settings.height);
+            let rect = settings.rect();
+            Rendered {
+                image: cut(&full, rect),
+                rect,
+                stats: small.stats,
+            }
+        };
         out.stats.elapsed = start.elapsed();
         out
     }
 }
 
-/// n × n samples per pixel on the reference path: the pixel centres of the n×-resolution
-/// grid, each with its own wavelengths should it meet glass.
-fn reference_supersampled(tracer: &Reference, settings: &RenderSettings, n: u32) -> Rendered {
-    let grid = settings
-        .camera
-        .pixel_grid(settings.width * n, settings.height * n);
-    let inv = 1.0 / (n * n) as f64;
-    render_bands(settings, 1, |row, pixels| {
-        let mut stats = RenderStats::default();
-        for (i, px) in pixels.iter_mut().enumerate() {
-            let mut sum = DVec3::ZERO;
-            for b in 0..n {
-                for a in 0..n {
-                    let (x, y) = (i as u32 * n + a, row * n + b);
-                    let ray = Ray::new(grid.eye, grid.direction(x as f64, y as f64));
-                    sum += tracer.trace_pixel(&ray, x, y, &mut stats);
-                }
-            }
-            let c = sum * inv;
-            *px = [quantize(c.x), quantize(c.y), quantize(c.z)];
-        }
-        stats.primary_rays += (pixels.len() as u64) * (n * n) as u64;
-        stats
-    })
-}
-
-/// n × n samples per pixel on the packet path: 4 × 2 packets over the n×-resolution
-/// grid (as `PacketRenderer::render` builds them), summed per pixel in f32.
-trait Supersampled {
-    fn supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
-        &self,
-        settings: &RenderSettings,
-        n: u32,
-    ) -> Rendered;
-}
-
-impl Supersampled for PacketRenderer {
-    fn supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
-        &self,
-        settings: &RenderSettings,
-        n: u32,
-    ) -> Rendered {
-        packet_supersampled::<ANY_HIT, EPS, GLASS>(self, settings, n)
+/// The pixels `rect` of `image`.
+fn cut(image: &Framebuffer, rect: PixelRect) -> Framebuffer {
+    if rect == PixelRect::full(image.width, image.height) {
+        return image.clone();
     }
-}
-
-fn packet_supersampled<const ANY_HIT: bool, const EPS: bool, const GLASS: bool>(
-    p: &PacketRenderer,
-    settings: &RenderSettings,
-    n: u32,
-) -> Rendered {
-    let (big_w, big_h) = (settings.width * n, settings.height * n);
-    let grid = settings.camera.pixel_grid(big_w, big_h);
-    let camera = CameraPackets::new(&grid, p.base());
-    let width = settings.width as usize;
-    let (bw, nn) = (big_w as usize, n as usize);
-    let inv = 1.0 / (n * n) as f32;
-    render_bands(settings, BAND_ROWS, |first_row, pixels| {
-        let mut stats = RenderStats::default();
-        let mut steps = Steps::default();
-        let mut chain = Vec::new();
-        let rows = pixels.len() / width;
-        let big_rows = rows * nn;
-        let big_first = first_row as usize * nn;
-        let mut sum = vec![[0.0f32; 3]; pixels.len()];
-        for py in (0..big_rows).step_by(2) {
-            for px in (0..bw).step_by(4) {
-                let row = big_first + py;
-                let bits = CameraPackets::lanes(px, py, bw, big_rows, row, big_h as usize);
-                let active = Mask8::from_bits(bits);
-                let ray = camera.packet(px, row, active);
-                let pixel = [px as u32, row as u32];
-                let c = p.trace_knobs::<ANY_HIT, EPS, GLASS>(
-                    &ray,
-                    active,
-                    pixel,
-                    Some(&grid),
-                    &mut chain,
-                    &mut stats,
-                    &mut steps,
-                );
-                stats.primary_rays += active.count() as u64;
-                let (r, g, b) = (c.x.to_array(), c.y.to_array(), c.z.to_array());
-                for lane in 0..8 {
-                    if bits >> lane & 1 == 1 {
-                        let (x, y) = (px + lane % 4, py + lane / 4);
-                        let s = &mut sum[(y / nn) * width + x / nn];
-                        s[0] += r[lane];
-                        s[1] += g[lane];
-                        s[2] += b[lane];
-                    }
-                }
-            }
-        }
-        stats.quadric_tests += steps.quadrics;
-        for (px, s) in pixels.iter_mut().zip(&sum) {
-            *px = s.map(|v| quantize((v * inv) as f64));
-        }
-        stats
-    })
+    let mut out = Framebuffer::new(rect.width(), rect.height());
+    for (y, row) in out.pixels.chunks_mut(rect.width() as usize).enumerate() {
+        let from = (rect.y0 as usize + y) * image.width as usize + rect.x0 as usize;
+        row.copy_from_slice(&image.pixels[from..from + row.len()]);
+    }
+    out
 }
 
 /// Bilinear upscale (pixel centres aligned, edges clamped).

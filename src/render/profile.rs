@@ -7,16 +7,13 @@
 //! into the binary) or a path. Unknown keys and bad values are errors naming
 //! file:line:column and the key.
 //!
-//! [`Profile::prepare`] builds the per-scene data once (the packet BVH, the prism photon
-//! map); [`Prepared::render`] then renders any number of frames.
+//! [`super::prepared::Prepared`] applies a profile to a scene.
 
 use std::path::Path;
 
 use serde::Deserialize;
 
-pub use super::prepared::Prepared;
-use super::{RenderSettings, Rendered};
-use crate::scene::Scene;
+pub use super::options::{PacketOptions, RayOffset, TriangleTest};
 
 /// Which renderer traces the frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -26,26 +23,6 @@ pub enum RenderPath {
     Reference,
     /// f32, 8-ray packets through a binned-SAH BVH: the fast path.
     Packet,
-}
-
-/// The packet path's ray/triangle test.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TriangleTest {
-    /// Woop, Benthin and Wald 2013: no ray passes between two triangles sharing an edge.
-    Watertight,
-    /// Möller–Trumbore: cheaper, can miss both triangles at a shared edge.
-    Moller,
-}
-
-/// How secondary rays leave a surface.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
-#[serde(try_from = "String")]
-pub enum RayOffset {
-    /// Past the hit point's floating-point error bound along the normal (any scale).
-    ErrorBound,
-    /// A fixed distance along the normal, in scene units (fails at extreme scales).
-    Epsilon(f32),
 }
 
 impl TryFrom<String> for RayOffset {
@@ -81,15 +58,9 @@ pub struct Profile {
     pub max_recursion: Option<u32>,
     /// Caustic photons emitted for scenes with glass (0 = no caustic).
     pub photons: u32,
-    /// Packet path: packets with at most this many active lanes go ray by ray.
-    pub single_ray_lanes: u32,
-    /// Packet path: the triangle test.
-    pub triangle_test: TriangleTest,
-    /// Packet path: how secondary rays leave surfaces.
-    pub ray_offset: RayOffset,
-    /// Packet path: shadow rays stop at the first blocker (any-hit) rather than
-    /// searching for the nearest.
-    pub shadow_any_hit: bool,
+    /// The packet path's options (`single_ray_lanes`, `triangle_test`, `ray_offset`,
+    /// `shadow_any_hit`).
+    pub packet: PacketOptions,
 }
 
 /// `samples_per_pixel`: a square from 1 to 64.
@@ -260,12 +231,15 @@ impl Profile {
             photons: f
                 .photons
                 .map_or(super::caustic::CausticSettings::default().photons, |p| p.0),
-            single_ray_lanes: f
-                .single_ray_lanes
-                .map_or(super::packet::FALLBACK_LANES, |l| l.0),
-            triangle_test: f.triangle_test.unwrap_or(TriangleTest::Watertight),
-            ray_offset: f.ray_offset.unwrap_or(RayOffset::ErrorBound),
-            shadow_any_hit: f.shadow_any_hit.unwrap_or(true),
+            packet: {
+                let d = PacketOptions::default();
+                PacketOptions {
+                    single_ray_lanes: f.single_ray_lanes.map_or(d.single_ray_lanes, |l| l.0),
+                    triangle_test: f.triangle_test.unwrap_or(d.triangle_test),
+                    ray_offset: f.ray_offset.unwrap_or(d.ray_offset),
+                    shadow_any_hit: f.shadow_any_hit.unwrap_or(d.shadow_any_hit),
+                }
+            },
         })
     }
 
@@ -274,18 +248,6 @@ impl Profile {
         (1..=8)
             .find(|n| n * n == self.samples_per_pixel)
             .unwrap_or(1)
-    }
-
-    /// Builds the per-scene data of this profile once (the packet BVH or, for scenes
-    /// with glass, the reference's photon map) for any number of frames.
-    pub fn prepare<'a>(&self, scene: &'a Scene) -> Prepared<'a> {
-        Prepared::new(self, scene)
-    }
-
-    /// Renders one frame (prepares the scene first; prefer [`Profile::prepare`] for
-    /// many frames of one scene).
-    pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
-        self.prepare(scene).render(settings)
     }
 }
 

@@ -35,11 +35,11 @@
 use glam::DVec3;
 
 use super::caustic::{CausticMap, CausticSettings, PhotonHit, PhotonTracer, glass_of};
-use super::frame::render_bands;
+use super::frame::{SampleBlock, SampleColors, SampleTracer, Samples};
 use super::spectral::{
     CAMERA_SAMPLES, GLASS_CUTOFF, MAX_GLASS_DEPTH, Wavelengths, glass_interface, nm_to_um,
 };
-use super::{RenderSettings, RenderStats, Rendered};
+use super::{FrameRenderer, RenderSettings, RenderStats, Rendered};
 use crate::geometry::{self, RefHit, SurfacePoint, floor, prism};
 use crate::math::Ray;
 use crate::math::float::offset_ray_origin;
@@ -128,8 +128,9 @@ impl<'a> Reference<'a> {
 
     /// Traces at most `level` levels (a profile's `max_recursion`); the photon map does
     /// not depend on it.
-    pub fn cap_recursion(&mut self, level: u32) {
+    pub fn cap_recursion(mut self, level: u32) -> Self {
         self.recursion_level = self.recursion_level.min(level);
+        self
     }
 
     /// The caustic photon map, if the scene has glass that a light reaches.
@@ -255,6 +256,9 @@ impl<'a> Reference<'a> {
             let Some(found) = self.nearest(&ray, f64::INFINITY) else {
                 break;
             };
+            if level == 1 {
+                stats.nearest_hit = stats.nearest_hit.min(found.hit.t);
+            }
             let (mut surf, color, m) = self.surface(&ray, &found);
             let outward = surf.normal; // unflipped: prism faces are wound outwards
             // every normal is flipped to face the incoming ray
@@ -486,21 +490,60 @@ pub fn render_with(
     settings: &RenderSettings,
     caustic: &CausticSettings,
 ) -> Rendered {
-    render_frame(&Reference::with_caustics(scene, caustic), settings)
+    Reference::with_caustics(scene, caustic).render(settings, 1)
 }
 
-/// One ray through each pixel centre, traced by a prepared tracer.
-pub fn render_frame(tracer: &Reference, settings: &RenderSettings) -> Rendered {
-    let grid = settings.camera.pixel_grid(settings.width, settings.height);
-    let width = settings.width;
-    render_bands(settings, 1, |row, pixels| {
-        let mut stats = RenderStats::default();
-        for (i, px) in pixels.iter_mut().enumerate() {
-            let ray = Ray::new(grid.eye, grid.direction(i as f64, row as f64));
-            let c = tracer.trace_pixel(&ray, i as u32, row, &mut stats);
-            *px = [quantize(c.x), quantize(c.y), quantize(c.z)];
+/// The reference's side of the frame loop: each sample of a block, one ray at a time.
+impl SampleTracer for Reference<'_> {
+    type Scratch = ();
+    type Colors = RefColors;
+
+    fn trace_block(
+        &self,
+        samples: &Samples,
+        block: SampleBlock,
+        _scratch: &mut (),
+        stats: &mut RenderStats,
+    ) -> RefColors {
+        let grid = &samples.grid;
+        let mut out = [DVec3::ZERO; 8];
+        for (k, c) in out.iter_mut().enumerate() {
+            if block.bits >> k & 1 == 1 {
+                let (x, y) = (block.x + k as u32 % 4, block.y + k as u32 / 4);
+                let ray = Ray::new(grid.eye, grid.direction(x as f64, y as f64));
+                *c = self.trace_pixel(&ray, x, y, stats);
+            }
         }
-        stats.primary_rays += width as u64;
-        stats
-    })
+        RefColors(out)
+    }
+}
+
+/// The reference's colours of a block of samples, in f64.
+#[derive(Clone, Copy, Debug)]
+pub struct RefColors(pub [DVec3; 8]);
+
+impl SampleColors for RefColors {
+    type Sum = DVec3;
+
+    fn rgb8(&self) -> [[u8; 3]; 8] {
+        self.0
+            .map(|c| [quantize(c.x), quantize(c.y), quantize(c.z)])
+    }
+
+    fn lane(&self, k: usize) -> DVec3 {
+        self.0[k]
+    }
+
+    fn add(sum: DVec3, c: DVec3) -> DVec3 {
+        sum + c
+    }
+
+    fn resolve(sum: DVec3, count: u32) -> [u8; 3] {
+        let c = sum * (1.0 / count as f64);
+        [quantize(c.x), quantize(c.y), quantize(c.z)]
+    }
+
+    fn linear(sum: DVec3, count: u32) -> DVec3 {
+        sum * (1.0 / count as f64)
+    }
 }

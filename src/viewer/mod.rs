@@ -50,7 +50,8 @@ use glam::DVec3;
 use minifb::{Key, Window, WindowOptions};
 
 use crate::output::{Framebuffer, write_next_output};
-use crate::render::profile::{Prepared, Profile};
+use crate::render::prepared::Prepared;
+use crate::render::profile::Profile;
 use crate::render::{RenderSettings, RenderStats};
 use crate::scene::{Camera, Scene};
 use flycam::{FlyCam, Motion};
@@ -256,12 +257,36 @@ struct Frame {
     stats: RenderStats,
 }
 
+/// A prepared profile whose f32 frame follows the camera ([`Prepared::follow`]), and the
+/// nearest hit of its last frame.
+struct View<'a> {
+    prepared: Prepared<'a>,
+    nearest: f64,
+}
+
+impl<'a> View<'a> {
+    fn new(profile: &Profile, scene: &'a Scene, eye: DVec3) -> View<'a> {
+        View {
+            prepared: profile.prepare(scene, eye),
+            nearest: f64::INFINITY,
+        }
+    }
+
+    fn render(&mut self, job: &Job) -> Frame {
+        self.prepared.follow(job.camera.eye, self.nearest);
+        let frame = render_job(&self.prepared, job);
+        self.nearest = frame.stats.nearest_hit;
+        frame
+    }
+}
+
 fn render_job(prepared: &Prepared, job: &Job) -> Frame {
     let (w, h) = preview_size(job.width, job.height, job.divisor);
     let settings = RenderSettings {
         width: w,
         height: h,
         camera: job.camera,
+        crop: None,
         threads: None,
         progress: false,
     };
@@ -306,13 +331,18 @@ fn spawn_render_worker(
     let handle = thread::Builder::new()
         .name("octaray-preview".into())
         .spawn(move || {
-            // per-scene data (BVH, photon map) once, not per frame
-            let still = profile.prepare(&scene);
-            let moving = moving_profile.prepare(&scene);
+            // per-scene data (BVH, photon map) once, not per frame, in an f32 frame
+            // that follows the camera when it has flown far
+            let profiles = [&profile, &moving_profile];
+            let mut views: [Option<View>; 2] = [None, None];
             let mut checked = false;
             for job in job_rx {
-                let prepared = if job.divisor > 1 { &moving } else { &still };
-                if frame_tx.send(render_job(prepared, &job)).is_err() {
+                let k = (job.divisor > 1) as usize;
+                let view =
+                    views[k].get_or_insert_with(|| View::new(profiles[k], &scene, job.camera.eye));
+                let frame = view.render(&job);
+                let prepared = &view.prepared;
+                if frame_tx.send(frame).is_err() {
                     break;
                 }
                 // once, after the first frame has built the packet renderer
@@ -709,7 +739,7 @@ impl fmt::Display for BenchReport {
 pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> BenchReport {
     let mut buffer = Vec::new();
     let (w, h) = (size.width, size.height);
-    let prepared = profile.prepare(scene);
+    let mut view = View::new(profile, scene, flight_camera(0).eye);
     let mut refiner = Refiner::default();
     let mut fly = |label: &str, adaptive: bool, refiner: &mut Refiner| {
         let mut rays = 0;
@@ -727,7 +757,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
                 height: h,
                 divisor,
             };
-            let frame = render_job(&prepared, &job);
+            let frame = view.render(&job);
             present_into(&frame.image, w as usize, h as usize, &mut buffer);
             let (pw, ph) = preview_size(w, h, divisor);
             refiner.observe(pw as u64 * ph as u64, frame.stats.elapsed);
@@ -769,7 +799,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
                 height: h,
                 divisor: d,
             };
-            let frame = render_job(&prepared, &job);
+            let frame = view.render(&job);
             present_into(&frame.image, w as usize, h as usize, &mut buffer);
             passes.push(d);
         }
@@ -779,7 +809,7 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
     BenchReport {
         size,
         profile: profile.name.clone(),
-        threads: crate::render::frame::threads(),
+        threads: crate::parallel::threads(),
         lines: vec![full, adaptive],
         stop_to_full,
         stop_passes,

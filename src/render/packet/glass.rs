@@ -24,7 +24,9 @@
 use glam::{DVec3, Vec3};
 use wide::f32x8;
 
-use super::{Chain, Gathered, PacketRenderer, PathState};
+use super::gather::Gathered;
+use super::path::{Chain, PathState};
+use super::{Offset, PacketRenderer, Settings, Tracer};
 use crate::bvh::Steps;
 use crate::geometry::Hit1;
 use crate::math::Ray;
@@ -84,7 +86,7 @@ pub(super) struct GlassHits {
     pub cauchy_b: f32x8,
 }
 
-/// What [`PacketRenderer::split_mono`] leaves to the caller's loop.
+/// What [`Tracer::split_mono`] leaves to the caller's loop.
 pub(super) struct MonoSplit {
     /// The lighter branch's weighted colour (zero where it was not traced).
     pub side: Vec3x8,
@@ -149,13 +151,15 @@ impl PacketRenderer {
             local
         }
     }
+}
 
+impl<S: Settings> Tracer<'_, S> {
     /// The glass lanes of a packet of RGB rays: what they transmit, split into their
     /// pixel's wavelengths and traced at `path.level + 1` (weighted; zero in the other
     /// lanes), and the per-channel weight of their reflection (the mean of kr + kt·F
     /// over the wavelengths; zero where it could add no more than the cutoff), which
     /// the caller's loop follows like a mirror ray.
-    pub(super) fn split_rgb<const ANY_HIT: bool, const EPS: bool>(
+    pub(super) fn split_rgb(
         &self,
         ray: &RayPacket8,
         g: &Gathered,
@@ -206,16 +210,11 @@ impl PacketRenderer {
                 if !nest || go.none() {
                     continue;
                 }
-                let o = self.leave::<EPS>(p, err, n_out, f.transmitted);
+                let o = self.offset.origin(p, err, n_out, f.transmitted);
                 let packet = RayPacket8::new(o, f.transmitted, go);
                 stats.refraction_rays += go.count() as u64;
-                let c = self.trace_deeper::<ANY_HIT, EPS>(
-                    &packet,
-                    go,
-                    &path.branch(Some(lambda), reach),
-                    stats,
-                    steps,
-                );
+                let c =
+                    self.trace_deeper(&packet, go, &path.branch(Some(lambda), reach), stats, steps);
                 for (j, (wk, wtj)) in weights.iter().zip(wt).enumerate() {
                     if go.lane(j) {
                         out[i] += wk.as_vec3() * wtj * c.lane(j);
@@ -238,7 +237,7 @@ impl PacketRenderer {
     /// more than [`GLASS_CUTOFF`] and fewer than [`MAX_GLASS_DEPTH`] branchings are
     /// nested already. Light kept by total internal reflection therefore bounces in
     /// the loop, at constant stack, up to the scene's recursion level.
-    pub(super) fn split_mono<const ANY_HIT: bool, const EPS: bool>(
+    pub(super) fn split_mono(
         &self,
         ray: &RayPacket8,
         g: &Gathered,
@@ -266,13 +265,13 @@ impl PacketRenderer {
         let mut side = Vec3x8::ZERO;
         let go = glass & both & (path.weight * other_weight).gt(cutoff);
         if go.any() && path.depth < MAX_GLASS_DEPTH {
-            let o = self.leave::<EPS>(g.point, g.err, outward, other_dir);
+            let o = self.offset.origin(g.point, g.err, outward, other_dir);
             let packet = RayPacket8::new(o, other_dir, go);
             let refracted = go.and_not(t_main);
             stats.refraction_rays += refracted.count() as u64;
             stats.reflection_rays += go.and_not(refracted).count() as u64;
             let next = path.branch(path.lambda, path.weight * other_weight);
-            let c = self.trace_deeper::<ANY_HIT, EPS>(&packet, go, &next, stats, steps);
+            let c = self.trace_deeper(&packet, go, &next, stats, steps);
             side = Vec3x8::select(go, c * other_weight, Vec3x8::ZERO);
         }
         // the main branch stops where it could add no more than the cutoff
@@ -285,9 +284,9 @@ impl PacketRenderer {
         }
     }
 
-    /// [`PacketRenderer::trace_path`] of a packet spawned at glass, with a mirror chain
+    /// [`Tracer::trace_path`] of a packet spawned at glass, with a mirror chain
     /// from this thread's pool (a recursion level deeper than its caller's).
-    fn trace_deeper<const ANY_HIT: bool, const EPS: bool>(
+    fn trace_deeper(
         &self,
         packet: &RayPacket8,
         active: Mask8,
@@ -299,8 +298,7 @@ impl PacketRenderer {
             static CHAINS: std::cell::RefCell<Vec<Chain>> = const { std::cell::RefCell::new(Vec::new()) };
         }
         let mut chain = CHAINS.with(|c| c.borrow_mut().pop()).unwrap_or_default();
-        let c =
-            self.trace_path::<ANY_HIT, EPS, true>(packet, active, path, &mut chain, stats, steps);
+        let c = self.trace_path(packet, active, path, &mut chain, stats, steps);
         CHAINS.with(|c| c.borrow_mut().push(chain));
         c
     }

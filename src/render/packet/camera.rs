@@ -1,0 +1,115 @@
+//! Camera packets: the packet path's side of the frame loop.
+
+use glam::{DVec3, Vec3};
+use wide::f32x8;
+
+use super::path::{Chain, PathState};
+use super::{Settings, Tracer};
+use crate::bvh::Steps;
+use crate::math::packet::{Mask8, RayPacket8, Vec3x8};
+use crate::output::framebuffer::quantize;
+use crate::render::RenderStats;
+use crate::render::frame::{SampleBlock, SampleColors, SampleTracer, Samples};
+use crate::scene::camera::PixelGrid;
+
+/// The camera rays of a sample grid in the renderer's f32 frame.
+pub(crate) struct CameraPackets {
+    eye: Vec3,
+    top_left: Vec3,
+    du: Vec3,
+    dv: Vec3,
+}
+
+impl CameraPackets {
+    /// The rays of `grid` in the frame centred on `base`.
+    pub(crate) fn new(grid: &PixelGrid, base: DVec3) -> CameraPackets {
+        CameraPackets {
+            eye: (grid.eye - base).as_vec3(),
+            top_left: (grid.top_left - grid.eye).as_vec3(),
+            du: grid.du.as_vec3(),
+            dv: grid.dv.as_vec3(),
+        }
+    }
+
+    /// The packet of `block`: lane k through sample (x + k % 4, y + k / 4).
+    #[inline]
+    pub(crate) fn packet(&self, block: SampleBlock) -> RayPacket8 {
+        let lane_x = f32x8::new([0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0]);
+        let lane_y = f32x8::new([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+        let i = lane_x + f32x8::splat(block.x as f32);
+        let j = lane_y + f32x8::splat(block.y as f32);
+        let p =
+            Vec3x8::splat(self.top_left) + Vec3x8::splat(self.du) * i + Vec3x8::splat(self.dv) * j;
+        let d = p * (f32x8::splat(1.0) / p.length());
+        RayPacket8::new(Vec3x8::splat(self.eye), d, Mask8::from_bits(block.bits))
+    }
+}
+
+/// A block's colours, each channel in [0, 1] (lanes outside the block black).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PacketColors(pub Vec3x8);
+
+impl SampleColors for PacketColors {
+    type Sum = [f32; 3];
+
+    #[inline]
+    fn rgb8(&self) -> [[u8; 3]; 8] {
+        // rounded half away from zero (`round`), then converted in SIMD, exactly
+        // (NaN → 0, as `as u8`)
+        let q = |v: f32x8| (v * f32x8::splat(255.0)).round().round_int().to_array();
+        let (r, g, b) = (q(self.0.x), q(self.0.y), q(self.0.z));
+        std::array::from_fn(|k| [r[k] as u8, g[k] as u8, b[k] as u8])
+    }
+
+    #[inline]
+    fn lane(&self, k: usize) -> [f32; 3] {
+        let c = &self.0;
+        [c.x.as_array()[k], c.y.as_array()[k], c.z.as_array()[k]]
+    }
+
+    #[inline]
+    fn add(sum: [f32; 3], c: [f32; 3]) -> [f32; 3] {
+        [sum[0] + c[0], sum[1] + c[1], sum[2] + c[2]]
+    }
+
+    fn resolve(sum: [f32; 3], count: u32) -> [u8; 3] {
+        let inv = 1.0 / count as f32;
+        sum.map(|v| quantize((v * inv) as f64))
+    }
+
+    fn linear(sum: [f32; 3], count: u32) -> DVec3 {
+        DVec3::from(sum.map(|v| v as f64)) / count as f64
+    }
+}
+
+/// Per band: the camera in the f32 frame and the mirror chain's buffer (one
+/// allocation per band, not per packet).
+#[derive(Default)]
+pub(crate) struct Scratch {
+    camera: Option<CameraPackets>,
+    chain: Chain,
+}
+
+impl<S: Settings> SampleTracer for Tracer<'_, S> {
+    type Scratch = Scratch;
+    type Colors = PacketColors;
+
+    #[inline]
+    fn trace_block(
+        &self,
+        samples: &Samples,
+        block: SampleBlock,
+        scratch: &mut Scratch,
+        stats: &mut RenderStats,
+    ) -> PacketColors {
+        let camera =
+            (scratch.camera).get_or_insert_with(|| CameraPackets::new(&samples.grid, self.base));
+        let ray = camera.packet(block);
+        let active = Mask8::from_bits(block.bits);
+        let path = PathState::camera([block.x, block.y], Some(samples.grid));
+        let mut steps = Steps::default();
+        let c = self.trace_path(&ray, active, &path, &mut scratch.chain, stats, &mut steps);
+        stats.quadric_tests += steps.quadrics;
+        PacketColors(c)
+    }
+}
