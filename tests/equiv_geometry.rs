@@ -14,6 +14,7 @@ mod common;
 use common::Rng;
 use glam::{DVec3, Vec3};
 use octaray::bvh::{Bvh, Steps};
+use octaray::geometry::triangle::Watertight;
 use octaray::geometry::{self, Hit1, PrimKind, PrimSet, split_code};
 use octaray::math::Ray;
 use octaray::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
@@ -90,7 +91,7 @@ fn fast_object(bvh: &Bvh, h: &Hit1) -> i64 {
     if !h.is_hit() {
         return -1;
     }
-    if split_code(h.prim).0 == PrimKind::Floor {
+    if split_code(h.prim).unwrap().0 == PrimKind::Floor {
         -2
     } else {
         bvh.prims.object(h.prim) as i64
@@ -139,9 +140,9 @@ fn check_rays(
         let active = Mask8::from_bits(bits);
         let packet = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active);
         let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
-        bvh.intersect_x8(&packet, active, &mut hp, &mut steps);
+        bvh.intersect_x8::<Watertight>(&packet, active, &mut hp, &mut steps);
         let occ_tmax = f32x8::splat(50.0);
-        let occ = bvh.occluded_x8(&packet, active, occ_tmax, &mut steps);
+        let occ = bvh.occluded_x8::<Watertight>(&packet, active, occ_tmax, &mut steps);
         for (i, r) in chunk.iter().enumerate() {
             let lane_active = bits >> i & 1 == 1;
             let (pt, pp) = (hp.t.to_array()[i], hp.prim_lane(i));
@@ -153,7 +154,7 @@ fn check_rays(
             tally.rays += 1;
             let r1 = Ray1::new(o[i], d[i]);
             let mut h1 = Hit1::new(f32::INFINITY);
-            bvh.intersect_1(&r1, &mut h1, &mut steps);
+            bvh.intersect_1::<Watertight>(&r1, &mut h1, &mut steps);
             // packet lane == single ray, bit for bit
             assert_eq!(
                 (pt.to_bits(), pp),
@@ -170,7 +171,7 @@ fn check_rays(
             );
             assert_eq!(
                 occ.lane(i),
-                bvh.occluded_1(&r1, 50.0, &mut steps),
+                bvh.occluded_1::<Watertight>(&r1, 50.0, &mut steps),
                 "{name}: ray {} occlusion differs between widths",
                 c * 8 + i
             );
@@ -362,10 +363,10 @@ fn shared_edges_are_watertight_in_both_widths() {
         let o = target + rng.vec_in(DVec3::new(-2.0, -2.0, 1.0), DVec3::new(2.0, 2.0, 4.0));
         let r = Ray1::new(o.as_vec3(), (target - o).normalize().as_vec3());
         let mut h = Hit1::new(f32::INFINITY);
-        bvh.intersect_1(&r, &mut h, &mut steps);
+        bvh.intersect_1::<Watertight>(&r, &mut h, &mut steps);
         let packet = RayPacket8::from_lanes(&[r.origin; 8], &[r.dir; 8]);
         let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
-        bvh.intersect_x8(&packet, Mask8::ALL, &mut hp, &mut steps);
+        bvh.intersect_x8::<Watertight>(&packet, Mask8::ALL, &mut hp, &mut steps);
         if !h.is_hit() || hp.prim_lane(0) < 0 {
             escaped += 1;
         }
@@ -610,7 +611,7 @@ fn surfaces_of_a_primitive_on_eight_lanes_equal_the_single_ray_ones() {
         }
         let r = RayPacket8::from_lanes(&os, &ds);
         let mut hit = HitPacket8::new(f32x8::splat(f32::INFINITY));
-        bvh.intersect_x8(&r, Mask8::ALL, &mut hit, &mut Steps::default());
+        bvh.intersect_x8::<Watertight>(&r, Mask8::ALL, &mut hit, &mut Steps::default());
         let (t, u, v) = (hit.t.to_array(), hit.u.to_array(), hit.v.to_array());
         for (i, &code) in hit.prim.to_array().iter().enumerate() {
             let Some(s8) = bvh.prims.surface_x8(code, &r, hit.t, hit.u, hit.v) else {
@@ -623,7 +624,7 @@ fn surfaces_of_a_primitive_on_eight_lanes_equal_the_single_ray_ones() {
             assert_eq!(lane(s8.normal), bits(s1.normal), "normal, code {code:#x}");
             assert_eq!(lane(s8.err), bits(s1.err), "error bound, code {code:#x}");
             checked += 1;
-            kinds.insert(split_code(code).0 as u32);
+            kinds.insert(split_code(code).unwrap().0 as u32);
         }
     }
     assert!(checked > 5000, "{checked} lanes checked");

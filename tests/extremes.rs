@@ -1066,11 +1066,9 @@ fn fixed_epsilon_offsets_fail_at_extreme_scales() {
 /// of 4096 packet lanes (8.5 %) through the diagonal.
 #[test]
 fn plain_triangle_test_leaks_at_shared_edges_and_watertight_does_not() {
-    use octaray::bvh::Steps;
-    use octaray::geometry::Hit1;
-    use octaray::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
-    use octaray::render::caustic::CausticSettings;
-    use octaray::render::options::{PacketOptions, TriangleTest};
+    use octaray::geometry::moller::Moller;
+    use octaray::geometry::triangle::Watertight;
+    use octaray::math::packet::Ray1;
     use octaray::render::packet::PacketRenderer;
     let v = [
         DVec3::new(0.13, 0.21, 5.0),
@@ -1105,44 +1103,13 @@ fn plain_triangle_test_leaks_at_shared_edges_and_watertight_does_not() {
             Ray1::from_f64(origin, (target - origin).normalize(), base)
         })
         .collect();
-    let mut escaped = Vec::new();
-    for moller in [false, true] {
-        let options = PacketOptions {
-            triangle_test: if moller {
-                TriangleTest::Moller
-            } else {
-                TriangleTest::Watertight
-            },
-            ..PacketOptions::default()
-        };
-        let r = PacketRenderer::with_options(&s, base, &options, &CausticSettings::default());
-        let mut steps = Steps::default();
-        let single = rays
-            .iter()
-            .filter(|ray| {
-                let mut h = Hit1::new(f32::INFINITY);
-                r.bvh.intersect_1(ray, &mut h, &mut steps);
-                h.prim < 0 || r.bvh.prims.object(h.prim) == u32::MAX
-            })
-            .count();
-        let mut packet = 0;
-        for chunk in rays.chunks(8) {
-            let o: [glam::Vec3; 8] = std::array::from_fn(|k| chunk[k].origin);
-            let d: [glam::Vec3; 8] = std::array::from_fn(|k| chunk[k].dir);
-            let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
-            let mut hit = HitPacket8::new(wide::f32x8::splat(f32::INFINITY));
-            r.bvh.intersect_x8(&p, Mask8::ALL, &mut hit, &mut steps);
-            packet += (0..8)
-                .filter(|&k| {
-                    let code = hit.prim_lane(k);
-                    code < 0 || r.bvh.prims.object(code) == u32::MAX
-                })
-                .count();
-        }
-        println!(
-            "moller {moller}: {single} of {n} single rays, {packet} of {n} packet lanes escaped"
-        );
-        escaped.push((single, packet));
+    let r = PacketRenderer::new(&s, base);
+    let escaped = [
+        escapes::<Watertight>(&r.bvh, &rays),
+        escapes::<Moller>(&r.bvh, &rays),
+    ];
+    for (name, (single, packet)) in ["watertight", "moller"].iter().zip(escaped) {
+        println!("{name}: {single} of {n} single rays, {packet} of {n} packet lanes escaped");
     }
     assert_eq!(
         escaped[0],
@@ -1154,6 +1121,37 @@ fn plain_triangle_test_leaks_at_shared_edges_and_watertight_does_not() {
         "the plain test is known to leak here: {:?}",
         escaped[1]
     );
+}
+
+/// Rays of `rays` that pass through the mesh of `bvh` to the floor or nowhere: single
+/// rays, then packet lanes, under the triangle kernel `T`.
+fn escapes<T: octaray::geometry::triangle::TriangleKernel>(
+    bvh: &octaray::bvh::Bvh,
+    rays: &[octaray::math::packet::Ray1],
+) -> (usize, usize) {
+    use octaray::bvh::Steps;
+    use octaray::geometry::Hit1;
+    use octaray::math::packet::{HitPacket8, Mask8, RayPacket8, Vec3x8};
+    let mut steps = Steps::default();
+    let escaped = |code: i32| code < 0 || bvh.prims.object(code) == u32::MAX;
+    let single = rays
+        .iter()
+        .filter(|ray| {
+            let mut h = Hit1::new(f32::INFINITY);
+            bvh.intersect_1::<T>(ray, &mut h, &mut steps);
+            escaped(h.prim)
+        })
+        .count();
+    let mut packet = 0;
+    for chunk in rays.chunks(8) {
+        let o: [glam::Vec3; 8] = std::array::from_fn(|k| chunk[k].origin);
+        let d: [glam::Vec3; 8] = std::array::from_fn(|k| chunk[k].dir);
+        let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
+        let mut hit = HitPacket8::new(wide::f32x8::splat(f32::INFINITY));
+        bvh.intersect_x8::<T>(&p, Mask8::ALL, &mut hit, &mut steps);
+        packet += (0..8).filter(|&k| escaped(hit.prim_lane(k))).count();
+    }
+    (single, packet)
 }
 
 // ------------------------------------- 9 and 13. deep recursion inside a prism on the floor

@@ -23,8 +23,9 @@ use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::traverse_x8::LANES_MIN_NODES;
-use octaray::bvh::wide_x8::FRUSTUM_SPREAD;
+use octaray::bvh::wide::walk_x8::FRUSTUM_SPREAD;
 use octaray::bvh::{Bvh, Steps};
+use octaray::geometry::triangle::Watertight;
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
 use octaray::geometry::{Hit1, PrimKind, PrimSet, split_code};
 use octaray::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
@@ -44,16 +45,16 @@ struct Tally {
 /// A triangle hit within 1e-4 (barycentric) of an edge.
 fn at_edge(h: &Hit1) -> bool {
     h.is_hit()
-        && split_code(h.prim).0 == PrimKind::Triangle
+        && split_code(h.prim).unwrap().0 == PrimKind::Triangle
         && h.u.abs().min(h.v.abs()).min((1.0 - h.u - h.v).abs()) <= 1e-4
 }
 
 fn closest(bvh: &Bvh, r: &Ray1, t_max: f32, wide: bool, steps: &mut Steps) -> Hit1 {
     let mut h = Hit1::new(t_max);
     if wide {
-        bvh.intersect_1(r, &mut h, steps);
+        bvh.intersect_1::<Watertight>(r, &mut h, steps);
     } else {
-        bvh.intersect_1_binary(r, &mut h, steps);
+        bvh.intersect_1_binary::<Watertight>(r, &mut h, steps);
     }
     h
 }
@@ -104,8 +105,8 @@ fn compare(name: &str, bvh: &Bvh, rays: &[Ray1], rng: &mut Rng) -> (Tally, Steps
             t_maxes.extend([hb.t, hb.t.next_up(), hb.t * rng.range(0.5, 2.0) as f32]);
         }
         for t_max in t_maxes {
-            let ow = bvh.occluded_1(r, t_max, &mut sw);
-            let ob = bvh.occluded_1_binary(r, t_max, &mut sb);
+            let ow = bvh.occluded_1::<Watertight>(r, t_max, &mut sw);
+            let ob = bvh.occluded_1_binary::<Watertight>(r, t_max, &mut sb);
             let cw = closest(bvh, r, t_max, true, &mut sw).is_hit();
             assert!(
                 ow == ob || edge_ray,
@@ -321,7 +322,7 @@ fn wide_equals_binary_on_a_mixed_scene() {
     let mut dup_targets = 0;
     for r in &rays {
         let h = closest(&bvh, r, f32::INFINITY, true, &mut steps);
-        if h.is_hit() && split_code(h.prim).0 != PrimKind::Floor {
+        if h.is_hit() && split_code(h.prim).unwrap().0 != PrimKind::Floor {
             let obj = bvh.prims.object(h.prim);
             assert!(obj < n_orig, "ray {r:?} hit duplicate object {obj}");
             dup_targets += (obj < 40) as usize;
@@ -345,7 +346,7 @@ fn nan_rays_never_hit() {
         let r = Ray1::new(o, d);
         let h = closest(&bvh, &r, f32::INFINITY, true, &mut steps);
         assert!(!h.is_hit(), "NaN ray {r:?} hit {h:?}");
-        assert!(!bvh.occluded_1(&r, f32::INFINITY, &mut steps));
+        assert!(!bvh.occluded_1::<Watertight>(&r, f32::INFINITY, &mut steps));
     }
 }
 
@@ -356,7 +357,7 @@ fn empty_tree_has_no_wide_nodes_and_misses() {
     let r = Ray1::new(Vec3::ZERO, Vec3::Z);
     let mut steps = Steps::default();
     assert!(!closest(&bvh, &r, f32::INFINITY, true, &mut steps).is_hit());
-    assert!(!bvh.occluded_1(&r, f32::INFINITY, &mut steps));
+    assert!(!bvh.occluded_1::<Watertight>(&r, f32::INFINITY, &mut steps));
 }
 
 #[test]
@@ -555,13 +556,13 @@ fn compare_packets_at(
             if l % 5 == 4 { 2.5 } else { f32::INFINITY }
         }));
         let mut hp = HitPacket8::new(t0);
-        bvh.intersect_x8_spread(&p, active, spread, &mut hp, &mut sx);
+        bvh.intersect_x8_spread::<Watertight>(&p, active, spread, &mut hp, &mut sx);
         let mut hpb = HitPacket8::new(t0);
-        bvh.intersect_x8_binary(&p, active, &mut hpb, &mut sxb);
+        bvh.intersect_x8_binary::<Watertight>(&p, active, &mut hpb, &mut sxb);
         let t_occ = f32x8::new(std::array::from_fn::<f32, 8, _>(|_| {
             rng.range(0.0, 3.0) as f32
         }));
-        let occ = bvh.occluded_x8_spread(&p, active, spread, t_occ, &mut sx);
+        let occ = bvh.occluded_x8_spread::<Watertight>(&p, active, spread, t_occ, &mut sx);
         let (ht, hu, hv) = (hp.t.to_array(), hp.u.to_array(), hp.v.to_array());
         let mut hit_t = [f32::INFINITY; 8];
         for l in 0..8 {
@@ -621,7 +622,7 @@ fn compare_packets_at(
             } else {
                 rng.range(0.0, 3.0) as f32
             };
-            let ob = bvh.occluded_1_binary(&r, t_occ.to_array()[l], &mut sb);
+            let ob = bvh.occluded_1_binary::<Watertight>(&r, t_occ.to_array()[l], &mut sb);
             assert!(
                 occ.lane(l) == ob || edge_lane || at_edge(&hb),
                 "{ctx}: occluded at {t_occ:?}"
@@ -632,22 +633,23 @@ fn compare_packets_at(
         let live = Mask8::from_bits(bits & !nan);
         for past in [false, true] {
             let tm = f32x8::new(hit_t.map(|t| if past { t.next_up() } else { t }));
-            let occ = bvh.occluded_x8_spread(&p, live, spread, tm, &mut sx);
+            let occ = bvh.occluded_x8_spread::<Watertight>(&p, live, spread, tm, &mut sx);
             for l in 0..8 {
                 if live.lane(l) {
                     let r = p.ray(l);
-                    let ob = bvh.occluded_1_binary(&r, tm.to_array()[l], &mut sb);
+                    let ob = bvh.occluded_1_binary::<Watertight>(&r, tm.to_array()[l], &mut sb);
                     let hb = closest(bvh, &r, f32::INFINITY, false, &mut sb);
                     // (a clipped quadric's any-hit kernels, packet and single, decide
                     // t == t_max within an ulp of each other, not bit for bit:
                     // `tests/equiv_geometry.rs` holds them to a tolerance)
-                    let quadric = hb.is_hit() && split_code(hb.prim).0 == PrimKind::Quadric;
+                    let quadric =
+                        hb.is_hit() && split_code(hb.prim).unwrap().0 == PrimKind::Quadric;
                     assert!(
                         occ.lane(l) == ob || at_edge(&hb) || quadric,
                         "{name}: packet {pi} lane {l} {r:?}: occluded at {} (past {past}): packet {}, binary {ob}, hit {hb:?} ({:?})",
                         tm.to_array()[l],
                         occ.lane(l),
-                        split_code(hb.prim).0
+                        split_code(hb.prim).unwrap().0
                     );
                 }
             }
@@ -701,12 +703,12 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
     let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
     let (mut sx, mut s1) = (Steps::default(), Steps::default());
     let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
-    bvh.intersect_x8(&p, Mask8::ALL, &mut hp, &mut sx);
+    bvh.intersect_x8::<Watertight>(&p, Mask8::ALL, &mut hp, &mut sx);
     let tm = f32x8::splat(1.0);
-    let occ = bvh.occluded_x8(&p, Mask8::ALL, tm, &mut sx);
+    let occ = bvh.occluded_x8::<Watertight>(&p, Mask8::ALL, tm, &mut sx);
     for l in 0..8 {
         let mut h = Hit1::new(f32::INFINITY);
-        bvh.intersect_1(&p.ray(l), &mut h, &mut s1);
+        bvh.intersect_1::<Watertight>(&p.ray(l), &mut h, &mut s1);
         let hl = (
             hp.t.to_array()[l],
             hp.prim_lane(l),
@@ -714,7 +716,10 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
             hp.v.to_array()[l],
         );
         assert_eq!((h.t, h.prim, h.u, h.v), hl);
-        assert_eq!(bvh.occluded_1(&p.ray(l), 1.0, &mut s1), occ.lane(l));
+        assert_eq!(
+            bvh.occluded_1::<Watertight>(&p.ray(l), 1.0, &mut s1),
+            occ.lane(l)
+        );
     }
     assert_eq!(sx, s1, "a mixed packet walks as its eight lanes do");
 }

@@ -17,6 +17,7 @@ use wide::f32x8;
 use super::wide::WideBvh;
 use super::{Bvh, Steps};
 use crate::geometry::triangle::Triangle32;
+use crate::geometry::triangle::Watertight;
 use crate::geometry::{Hit1, PrimSet};
 use crate::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::scene::obj::{ObjError, load_obj};
@@ -149,7 +150,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                 for (i, t) in out.iter_mut().enumerate() {
                     let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
                     let mut h = Hit1::new(f32::INFINITY);
-                    bvh.intersect_1(&r, &mut h, &mut steps);
+                    bvh.intersect_1::<Watertight>(&r, &mut h, &mut steps);
                     *t = if h.is_hit() { h.t } else { -1.0 };
                 }
             }
@@ -157,7 +158,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                 for (i, t) in out.iter_mut().enumerate() {
                     let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
                     let mut h = Hit1::new(f32::INFINITY);
-                    bvh.intersect_1_binary(&r, &mut h, &mut steps);
+                    bvh.intersect_1_binary::<Watertight>(&r, &mut h, &mut steps);
                     *t = if h.is_hit() { h.t } else { -1.0 };
                 }
             }
@@ -183,9 +184,9 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                     };
                     let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
                     if mode == Mode::Packet8 {
-                        bvh.intersect_x8(&p, active, &mut h, &mut steps);
+                        bvh.intersect_x8::<Watertight>(&p, active, &mut h, &mut steps);
                     } else {
-                        bvh.intersect_x8_binary(&p, active, &mut h, &mut steps);
+                        bvh.intersect_x8_binary::<Watertight>(&p, active, &mut h, &mut steps);
                     }
                     // t of the lanes that hit, −1 for the others, stored whole
                     let t = h.hit_mask().select(h.t, f32x8::splat(-1.0)).to_array();

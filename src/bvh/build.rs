@@ -24,9 +24,10 @@
 use glam::Vec4;
 use wide::{f32x4, f32x8, i32x4};
 
-use super::node::{Aabb, BvhNode};
-use super::wide::huge_vec;
+use super::memory::huge_vec;
+use super::node::BvhNode;
 use crate::geometry::{PrimKind, PrimSet};
+use crate::math::Aabb;
 
 /// Bins per axis at most (Embree's count); a range of n references uses
 /// `bin_count(n)` of them.
@@ -272,17 +273,11 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     // reorder the BVH kinds into leaf order: each kind's new array is its
     // references' primitives in reference order, one gather (was a push per
     // primitive, leaf by leaf, after a pass over a list of the leaves)
-    use PrimKind::{Quadric, Sphere};
-    // the triangles are of one kind or the other, per scene (profile `triangle_test`)
-    let tri = if prims.moller {
-        PrimKind::TriangleMoller
-    } else {
-        PrimKind::Triangle
-    };
+    use PrimKind::{Quadric, Sphere, Triangle};
     prims.spheres = gather(&refs, Sphere, &prims.spheres);
     prims.sphere_obj = gather(&refs, Sphere, &prims.sphere_obj);
-    prims.triangles = gather(&refs, tri, &prims.triangles);
-    prims.triangle_obj = gather(&refs, tri, &prims.triangle_obj);
+    prims.triangles = gather(&refs, Triangle, &prims.triangles);
+    prims.triangle_obj = gather(&refs, Triangle, &prims.triangle_obj);
     prims.quadrics = gather(&refs, Quadric, &prims.quadrics);
     prims.quadric_obj = gather(&refs, Quadric, &prims.quadric_obj);
     nodes
@@ -316,7 +311,7 @@ impl Leaves {
             Aabb::new(lo.truncate(), hi.truncate()),
             first,
             part.len() as u32,
-            PrimKind::from_u32(k),
+            PrimKind::from_bits(k).expect("a reference's kind"),
         )
     }
 }

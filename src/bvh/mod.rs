@@ -13,13 +13,13 @@
 //! object index (file order), the floor last; shadow (any-hit) queries stop at the
 //! first blocker.
 
-/// `$recv.$method::<K>(args)` for the constant `K` among `$n...` equal to `$k`: picks
-/// the const instance of a walk (a direction octant, a permutation axis) once per
-/// query. Every value of `$k` must be listed.
+/// `$recv.$method::<T, K>(args)` for the constant `K` among `$n...` equal to `$k`:
+/// picks the const instance of a walk (a direction octant, a permutation axis) once
+/// per query. Every value of `$k` must be listed.
 macro_rules! with_const {
-    ($k:expr, [$($n:literal),+], $recv:ident.$method:ident $args:tt) => {
+    ($k:expr, [$($n:literal),+], $recv:ident.$method:ident::<$t:ident> $args:tt) => {
         match $k {
-            $($n => $recv.$method::<$n> $args,)+
+            $($n => $recv.$method::<$t, $n> $args,)+
             _ => unreachable!("no const instance for this value"),
         }
     };
@@ -27,14 +27,16 @@ macro_rules! with_const {
 
 pub mod bench;
 pub mod build;
+pub mod memory;
 pub mod node;
+pub mod slot;
 pub mod traverse_1;
 pub mod traverse_x8;
 pub mod validate;
 pub mod wide;
-pub mod wide_x8;
 
-pub use node::{Aabb, BvhNode};
+pub use node::BvhNode;
+pub use slot::Slot;
 
 use crate::geometry::{PrimKind, PrimSet};
 

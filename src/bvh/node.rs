@@ -1,80 +1,16 @@
-//! The BVH's node and box types.
+//! The binary BVH's node.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3A;
 use wide::f32x8;
 
+use super::slot::Slot;
 use crate::geometry::PrimKind;
+use crate::math::Aabb;
 use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1, RayPacket8};
-
-/// An axis-aligned box; empty when lo > hi.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Aabb {
-    pub lo: Vec3,
-    pub hi: Vec3,
-}
-
-impl Aabb {
-    pub const EMPTY: Aabb = Aabb {
-        lo: Vec3::splat(f32::INFINITY),
-        hi: Vec3::splat(f32::NEG_INFINITY),
-    };
-
-    pub fn new(lo: Vec3, hi: Vec3) -> Aabb {
-        Aabb { lo, hi }
-    }
-
-    pub fn union(self, o: Aabb) -> Aabb {
-        Aabb::new(self.lo.min(o.lo), self.hi.max(o.hi))
-    }
-
-    pub fn contains(&self, o: &Aabb) -> bool {
-        self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
-    }
-
-    /// Surface area (0 for an empty box).
-    pub fn area(&self) -> f32 {
-        let d = (self.hi - self.lo).max(Vec3::ZERO);
-        2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
-    }
-
-    pub fn centroid(&self) -> Vec3 {
-        (self.lo + self.hi) * 0.5
-    }
-
-    /// The box moved out past every face by at least one f32 step and [`FACE_GAP`], as
-    /// the tree's nodes store it. A ray lying exactly in a face plane (a zero direction
-    /// component, its origin on the face: a camera level with the top of a clipped
-    /// cylinder, the centre row of an odd-sized image) met that face at t = 0 as its
-    /// exit (1/d is +2¹⁰⁰ for +0) and missed the box, though the surface's points on
-    /// the face count (the quadric's box test is inclusive): a row of the cylinder's
-    /// top vanished (found by a differential test of two builds). Inside the gap, the
-    /// face imposes no bound on such a ray; a ray in the moved face plane itself meets
-    /// nothing inside. Empty and infinite coordinates stay as they are.
-    pub fn outward(self) -> Aabb {
-        let out = |v: f32, up: bool| {
-            if !v.is_finite() {
-                return v;
-            }
-            let step = if up { v.next_up() } else { v.next_down() };
-            let gap = if up { v + FACE_GAP } else { v - FACE_GAP };
-            if up { step.max(gap) } else { step.min(gap) }
-        };
-        Aabb::new(
-            Vec3::from(self.lo.to_array().map(|v| out(v, false))),
-            Vec3::from(self.hi.to_array().map(|v| out(v, true))),
-        )
-    }
-}
-
-/// The least distance by which a node's box clears the bounds it holds ([`Aabb::outward`]):
-/// 2⁻⁵⁰ ≈ 8.9e-16, beyond one f32 step where coordinates are near 0 (the camera's own
-/// planes in its frame).
-pub const FACE_GAP: f32 = 8.881_784e-16;
 
 /// A node of the flat BVH array. 32 B, two per cache line, 32-byte aligned.
 ///
-/// `meta` bits 0..28: primitive count; 0 marks an interior node. Bits 28..31: for a
-/// leaf the [`PrimKind`] of all its primitives, for an interior node the split axis.
+/// `slot`: a leaf of primitives of one kind, or an interior node and its split axis.
 /// `first`: interior: index of the left child, the right child is `first + 1`;
 /// leaf: index of its first primitive in the PrimSet array of its kind (a leaf's
 /// primitives are contiguous there).
@@ -84,12 +20,10 @@ pub struct BvhNode {
     pub lo: [f32; 3],
     pub first: u32,
     pub hi: [f32; 3],
-    pub meta: u32,
+    pub slot: Slot,
 }
 
 const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
-
-const COUNT_MASK: u32 = (1 << 28) - 1;
 
 impl BvhNode {
     pub fn interior(b: Aabb, left: u32, axis: usize) -> BvhNode {
@@ -98,36 +32,35 @@ impl BvhNode {
             lo: b.lo.into(),
             first: left,
             hi: b.hi.into(),
-            meta: (axis as u32) << 28,
+            slot: Slot::split(axis),
         }
     }
 
     pub fn leaf(b: Aabb, first: u32, count: u32, kind: PrimKind) -> BvhNode {
-        debug_assert!(count > 0 && count <= COUNT_MASK);
         let b = b.outward();
         BvhNode {
             lo: b.lo.into(),
             first,
             hi: b.hi.into(),
-            meta: count | (kind as u32) << 28,
+            slot: Slot::leaf(kind, count),
         }
     }
 
     #[inline]
     pub fn count(&self) -> u32 {
-        self.meta & COUNT_MASK
+        self.slot.count()
     }
     #[inline]
     pub fn is_leaf(&self) -> bool {
-        self.count() != 0
+        !self.slot.is_interior()
     }
     #[inline]
     pub fn axis(&self) -> usize {
-        (self.meta >> 28) as usize
+        self.slot.axis()
     }
     #[inline]
     pub fn kind(&self) -> PrimKind {
-        PrimKind::from_u32(self.meta >> 28)
+        self.slot.kind()
     }
     pub fn bounds(&self) -> Aabb {
         Aabb::new(self.lo.into(), self.hi.into())

@@ -6,26 +6,37 @@
 //! nearer is visited first and the farther pushed with its entry distance, skipped
 //! when popped if a nearer hit has been found meanwhile.
 
+use super::slot::Stack;
 use super::{Bvh, STACK_SIZE, Steps};
+use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{Hit1, PrimKind};
 use crate::math::packet::Ray1;
 
 impl Bvh {
     /// Nearest hit below `hit.t`, recorded in `hit`.
-    pub fn intersect_1_binary(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+    pub fn intersect_1_binary<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
         if let Some(root) = self.nodes.first() {
             steps.boxes += 1;
             if root.intersect_1(r, hit.t).is_some() {
-                let mut stack = [(0u32, 0f32); STACK_SIZE];
-                let mut sp = 0;
+                let mut stack = Stack::<(u32, f32), STACK_SIZE>::new();
                 let mut ni = 0usize;
                 loop {
                     let node = &self.nodes[ni];
                     if node.is_leaf() {
                         let count = node.count() as usize;
                         steps.leaf(node.kind(), count, 1);
-                        self.prims
-                            .intersect_1(node.kind(), node.first as usize, count, r, hit);
+                        self.prims.intersect_1::<T>(
+                            node.kind(),
+                            node.first as usize,
+                            count,
+                            r,
+                            hit,
+                        );
                     } else {
                         let l = node.first as usize;
                         steps.boxes += 2;
@@ -38,8 +49,7 @@ impl Bvh {
                                 } else {
                                     (l + 1, l, tl)
                                 };
-                                stack[sp] = (far as u32, tf);
-                                sp += 1;
+                                stack.push((far as u32, tf));
                                 ni = near;
                                 continue;
                             }
@@ -56,9 +66,7 @@ impl Bvh {
                     }
                     // pop the next subtree still in front of the nearest hit
                     let mut next = None;
-                    while sp > 0 {
-                        sp -= 1;
-                        let (n, t) = stack[sp];
+                    while let Some((n, t)) = stack.pop() {
                         if t <= hit.t {
                             next = Some(n as usize);
                             break;
@@ -71,22 +79,26 @@ impl Bvh {
                 }
             }
         }
-        self.intersect_beside_1(r, hit, steps);
+        self.intersect_beside_1::<T>(r, hit, steps);
     }
 
     /// Whether anything lies on the ray with 0 < t < t_max.
-    pub fn occluded_1_binary(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
-        if self.occluded_beside_1(r, t_max, steps) {
+    pub fn occluded_1_binary<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        if self.occluded_beside_1::<T>(r, t_max, steps) {
             return true;
         }
         if self.nodes.is_empty() {
             return false;
         }
-        let mut stack = [0u32; STACK_SIZE];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let node = &self.nodes[stack[sp] as usize];
+        let mut stack = Stack::<u32, STACK_SIZE>::new();
+        stack.push(0);
+        while let Some(ni) = stack.pop() {
+            let node = &self.nodes[ni as usize];
             steps.boxes += 1;
             if node.intersect_1(r, t_max).is_none() {
                 continue;
@@ -96,14 +108,13 @@ impl Bvh {
                 steps.leaf(node.kind(), count, 1);
                 if self
                     .prims
-                    .occluded_1(node.kind(), node.first as usize, count, r, t_max)
+                    .occluded_1::<T>(node.kind(), node.first as usize, count, r, t_max)
                 {
                     return true;
                 }
             } else {
-                stack[sp] = node.first;
-                stack[sp + 1] = node.first + 1;
-                sp += 2;
+                stack.push(node.first);
+                stack.push(node.first + 1);
             }
         }
         false
@@ -112,26 +123,37 @@ impl Bvh {
     /// The primitives beside the tree, closest hit: unbounded quadrics, then the floor
     /// (after the tree, so an exact tie keeps the tree's lower object index).
     #[inline]
-    pub(crate) fn intersect_beside_1(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+    pub(crate) fn intersect_beside_1<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
         let nq = self.prims.free_quadrics.len();
         if nq > 0 {
             steps.prims += nq as u64;
             steps.quadrics += nq as u64;
-            self.prims.intersect_1(PrimKind::FreeQuadric, 0, nq, r, hit);
+            self.prims
+                .intersect_1::<T>(PrimKind::FreeQuadric, 0, nq, r, hit);
         }
         if self.prims.floor.is_some() {
             steps.prims += 1;
-            self.prims.intersect_1(PrimKind::Floor, 0, 1, r, hit);
+            self.prims.intersect_1::<T>(PrimKind::Floor, 0, 1, r, hit);
         }
     }
 
     /// Whether the floor or an unbounded quadric blocks the ray before `t_max` (tested
     /// before the tree: one plane test often settles a shadow ray).
     #[inline]
-    pub(crate) fn occluded_beside_1(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+    pub(crate) fn occluded_beside_1<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
         if self.prims.floor.is_some() {
             steps.prims += 1;
-            if self.prims.occluded_1(PrimKind::Floor, 0, 1, r, t_max) {
+            if self.prims.occluded_1::<T>(PrimKind::Floor, 0, 1, r, t_max) {
                 return true;
             }
         }
@@ -141,7 +163,7 @@ impl Bvh {
             steps.quadrics += nq as u64;
             if self
                 .prims
-                .occluded_1(PrimKind::FreeQuadric, 0, nq, r, t_max)
+                .occluded_1::<T>(PrimKind::FreeQuadric, 0, nq, r, t_max)
             {
                 return true;
             }

@@ -10,13 +10,13 @@
 //! run a copy of the loop specialised to their octant, with the slab test's entry and
 //! exit planes known in advance (`BvhNode::intersect_x8_oct`).
 
-use std::mem::MaybeUninit;
-
 use wide::{f32x8, i32x8};
 
 use super::node::BvhNode;
-use super::wide_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
+use super::slot::Stack;
+use super::wide::walk_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
 use super::{Bvh, STACK_SIZE, Steps};
+use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{Hit1, PrimKind};
 use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, RayPacket8};
 
@@ -46,7 +46,7 @@ impl<const NX: bool, const NY: bool, const NZ: bool> BoxTest for Octant<NX, NY, 
 /// A subtree left for later: node, mask of the lanes that met its box, their least
 /// entry distance.
 #[derive(Clone, Copy)]
-struct Pending {
+struct Subtree {
     node: u32,
     lanes: u32,
     near: f32,
@@ -126,14 +126,14 @@ impl Bvh {
     /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs go lane by lane through
     /// the 8-wide single-ray walk; the others walk the binary tree
     /// ([`Bvh::intersect_x8_binary`]).
-    pub fn intersect_x8(
+    pub fn intersect_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        self.intersect_x8_spread(r, active, self.frustum_spread(), hit, steps);
+        self.intersect_x8_spread::<T>(r, active, self.frustum_spread(), hit, steps);
     }
 
     /// The coherence limit of the wide packet walk in this tree: [`FRUSTUM_SPREAD`], or
@@ -151,7 +151,7 @@ impl Bvh {
     /// [`Bvh::intersect_x8`] with the coherence limit `spread` instead of
     /// [`FRUSTUM_SPREAD`], whatever the tree's size (tests: ∞ sends every packet whose
     /// lanes share their signs through the wide walk; a negative one none).
-    pub fn intersect_x8_spread(
+    pub fn intersect_x8_spread<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -165,18 +165,18 @@ impl Bvh {
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
             match shared_octant(r, act) {
-                Some(oct) if self.intersect_x8_wide(r, act, oct, spread, hit, steps) => {
-                    self.intersect_beside_x8(r, active, hit, steps);
+                Some(oct) if self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) => {
+                    self.intersect_beside_x8::<T>(r, active, hit, steps);
                     return;
                 }
                 None if self.wide.nodes.len() >= LANES_MIN_NODES => {
-                    self.intersect_x8_lanes(r, active, hit, steps);
+                    self.intersect_x8_lanes::<T>(r, active, hit, steps);
                     return;
                 }
                 _ => {}
             }
         }
-        self.intersect_x8_binary(r, active, hit, steps);
+        self.intersect_x8_binary::<T>(r, active, hit, steps);
     }
 
     /// [`Bvh::intersect_x8`] lane by lane: each lane of `active` through
@@ -189,7 +189,7 @@ impl Bvh {
     // pairs, 10 in its favour), but the step-shaped single-ray walk it shares lost
     // ~4 % in incoherent mode=1 (8 pairs) and ~10 % in primary mode=1 (6 pairs).
     // Not kept: the walk is not waiting on single fetches so much as on their number.
-    pub fn intersect_x8_lanes(
+    pub fn intersect_x8_lanes<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -208,7 +208,7 @@ impl Bvh {
                 u: u[l],
                 v: v[l],
             };
-            self.intersect_1(&r.ray(l), &mut h, steps);
+            self.intersect_1::<T>(&r.ray(l), &mut h, steps);
             (t[l], prim[l], u[l], v[l]) = (h.t, h.prim, h.u, h.v);
         }
         *hit = HitPacket8 {
@@ -222,7 +222,7 @@ impl Bvh {
     /// [`Bvh::intersect_x8`] through the binary tree only: every packet in trees too
     /// small for the 8-wide walks, packets too spread for the frustum, the benches'
     /// `mode=8b`, and the tests' oracle of the other packet walks.
-    pub fn intersect_x8_binary(
+    pub fn intersect_x8_binary<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -237,27 +237,27 @@ impl Bvh {
             // the direction, −0 included)
             let oct = shared_octant(r, active);
             let s = match oct {
-                Some(0) => self.walk_x8::<Octant<false, false, false>>(r, active, hit, 0),
-                Some(1) => self.walk_x8::<Octant<true, false, false>>(r, active, hit, 1),
-                Some(2) => self.walk_x8::<Octant<false, true, false>>(r, active, hit, 2),
-                Some(3) => self.walk_x8::<Octant<true, true, false>>(r, active, hit, 3),
-                Some(4) => self.walk_x8::<Octant<false, false, true>>(r, active, hit, 4),
-                Some(5) => self.walk_x8::<Octant<true, false, true>>(r, active, hit, 5),
-                Some(6) => self.walk_x8::<Octant<false, true, true>>(r, active, hit, 6),
-                Some(_) => self.walk_x8::<Octant<true, true, true>>(r, active, hit, 7),
-                None => self.walk_x8::<AnyOctant>(r, active, hit, r.octant),
+                Some(0) => self.walk_x8::<T, Octant<false, false, false>>(r, active, hit, 0),
+                Some(1) => self.walk_x8::<T, Octant<true, false, false>>(r, active, hit, 1),
+                Some(2) => self.walk_x8::<T, Octant<false, true, false>>(r, active, hit, 2),
+                Some(3) => self.walk_x8::<T, Octant<true, true, false>>(r, active, hit, 3),
+                Some(4) => self.walk_x8::<T, Octant<false, false, true>>(r, active, hit, 4),
+                Some(5) => self.walk_x8::<T, Octant<true, false, true>>(r, active, hit, 5),
+                Some(6) => self.walk_x8::<T, Octant<false, true, true>>(r, active, hit, 6),
+                Some(_) => self.walk_x8::<T, Octant<true, true, true>>(r, active, hit, 7),
+                None => self.walk_x8::<T, AnyOctant>(r, active, hit, r.octant),
             };
             steps.boxes += s.boxes;
             steps.prims += s.prims;
             steps.quadrics += s.quadrics;
         }
-        self.intersect_beside_x8(r, active, hit, steps);
+        self.intersect_beside_x8::<T>(r, active, hit, steps);
     }
 
     /// The tree part of [`Bvh::intersect_x8`]; `octant`: the direction sign bits that
     /// order the children (bit k: negative along axis k). Counts in a local `Steps`.
     #[inline(always)]
-    fn walk_x8<B: BoxTest>(
+    fn walk_x8<T: TriangleKernel, B: BoxTest>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -274,11 +274,7 @@ impl Bvh {
             return steps;
         }
         let mut limit = cull_limit(hit.t, active);
-        // uninitialised, as in the wide walks: entries below `sp` are written before
-        // they are read (zeroing its 1152 bytes was a memset call on every packet
-        // that entered the tree: 1.6 % of the given scene's instructions, callgrind)
-        let mut stack = [MaybeUninit::<Pending>::uninit(); STACK_SIZE];
-        let mut sp = 0;
+        let mut stack = Stack::<Subtree, STACK_SIZE>::new();
         let mut ni = 0usize;
         loop {
             let node = &nodes[ni];
@@ -286,7 +282,7 @@ impl Bvh {
                 let count = node.count() as usize;
                 steps.leaf(node.kind(), count, m.count());
                 self.prims
-                    .intersect_x8(node.kind(), node.first as usize, count, r, m, hit);
+                    .intersect_x8::<T>(node.kind(), node.first as usize, count, r, m, hit);
                 limit = cull_limit(hit.t, active);
             } else {
                 let l = node.first as usize;
@@ -305,12 +301,11 @@ impl Bvh {
                         } else {
                             (l + 1, m1, l, m0, n0)
                         };
-                        stack[sp] = MaybeUninit::new(Pending {
+                        stack.push(Subtree {
                             node: far as u32,
                             lanes: mf.bits(),
                             near: least_near(nf, mf),
                         });
-                        sp += 1;
                         ni = near;
                         m = mn;
                         continue;
@@ -330,12 +325,9 @@ impl Bvh {
             }
             // pop the next subtree some lane may still enter before its nearest hit
             loop {
-                if sp == 0 {
+                let Some(p) = stack.pop() else {
                     return steps;
-                }
-                sp -= 1;
-                // SAFETY: entries 0..sp (before the decrement) were written.
-                let p = unsafe { stack[sp].assume_init() };
+                };
                 if p.near <= limit {
                     ni = p.node as usize;
                     m = Mask8::from_bits(p.lanes);
@@ -347,7 +339,7 @@ impl Bvh {
 
     /// The unbounded quadrics, then the floor.
     #[inline]
-    fn intersect_beside_x8(
+    fn intersect_beside_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -359,7 +351,7 @@ impl Bvh {
             steps.prims += nq as u64;
             steps.quadrics += (nq * active.count() as usize) as u64;
             self.prims
-                .intersect_x8(PrimKind::FreeQuadric, 0, nq, r, active, hit);
+                .intersect_x8::<T>(PrimKind::FreeQuadric, 0, nq, r, active, hit);
         }
         if self.prims.floor.is_some() {
             steps.prims += 1;
@@ -370,19 +362,19 @@ impl Bvh {
     /// The lanes of `active` whose ray is blocked by anything with 0 < t < t_max
     /// (any hit: a lane leaves the query at its first blocker). Coherent packets walk
     /// the 8-wide tree, as in [`Bvh::intersect_x8`].
-    pub fn occluded_x8(
+    pub fn occluded_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_spread(r, active, self.frustum_spread(), t_max, steps)
+        self.occluded_x8_spread::<T>(r, active, self.frustum_spread(), t_max, steps)
     }
 
     /// [`Bvh::occluded_x8`] with the coherence limit `spread` (as
     /// [`Bvh::intersect_x8_spread`]).
-    pub fn occluded_x8_spread(
+    pub fn occluded_x8_spread<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -391,20 +383,22 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         if spread < 0.0 || self.wide.nodes.is_empty() {
-            return self.occluded_x8_with(r, active, t_max, None, steps);
+            return self.occluded_x8_with::<T>(r, active, t_max, None, steps);
         }
         match shared_octant(r, active & finite_lanes(r)) {
-            Some(octant) => self.occluded_x8_with(r, active, t_max, Some((octant, spread)), steps),
-            None if self.wide.nodes.len() >= LANES_MIN_NODES => {
-                self.occluded_x8_lanes(r, active, t_max, steps)
+            Some(octant) => {
+                self.occluded_x8_with::<T>(r, active, t_max, Some((octant, spread)), steps)
             }
-            None => self.occluded_x8_with(r, active, t_max, None, steps),
+            None if self.wide.nodes.len() >= LANES_MIN_NODES => {
+                self.occluded_x8_lanes::<T>(r, active, t_max, steps)
+            }
+            None => self.occluded_x8_with::<T>(r, active, t_max, None, steps),
         }
     }
 
     /// [`Bvh::occluded_x8`] lane by lane through [`Bvh::occluded_1`] (incoherent
     /// packets here, and the renderer's packets of too few lanes).
-    pub fn occluded_x8_lanes(
+    pub fn occluded_x8_lanes<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -417,29 +411,18 @@ impl Bvh {
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            if self.occluded_1(&r.ray(l), tm[l], steps) {
+            if self.occluded_1::<T>(&r.ray(l), tm[l], steps) {
                 blocked |= 1 << l;
             }
         }
         Mask8::from_bits(blocked)
     }
 
-    /// [`Bvh::occluded_x8`] through the binary tree only.
-    pub fn occluded_x8_binary(
-        &self,
-        r: &RayPacket8,
-        active: Mask8,
-        t_max: f32x8,
-        steps: &mut Steps,
-    ) -> Mask8 {
-        self.occluded_x8_with(r, active, t_max, None, steps)
-    }
-
     /// The any-hit query: the list beside the tree, then the wide tree when
     /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
     /// packet is coherent enough, else the binary one.
     #[inline(always)]
-    fn occluded_x8_with(
+    fn occluded_x8_with<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -453,37 +436,35 @@ impl Bvh {
             steps.prims += 1;
             left = left.and_not(
                 self.prims
-                    .occluded_x8(PrimKind::Floor, 0, 1, r, left, t_max),
+                    .occluded_x8::<T>(PrimKind::Floor, 0, 1, r, left, t_max),
             );
         }
         let nq = self.prims.free_quadrics.len();
         if nq > 0 && left.any() {
             steps.prims += nq as u64;
             steps.quadrics += (nq * left.count() as usize) as u64;
-            left =
-                left.and_not(
-                    self.prims
-                        .occluded_x8(PrimKind::FreeQuadric, 0, nq, r, left, t_max),
-                );
+            left = left.and_not(self.prims.occluded_x8::<T>(
+                PrimKind::FreeQuadric,
+                0,
+                nq,
+                r,
+                left,
+                t_max,
+            ));
         }
         let frustum = match wide_octant {
             Some((octant, spread)) if left.any() => {
-                self.occluded_x8_wide(r, left & finite_lanes(r), octant, spread, t_max, steps)
+                self.occluded_x8_wide::<T>(r, left & finite_lanes(r), octant, spread, t_max, steps)
             }
             _ => None,
         };
         if let Some(blocked) = frustum {
             left = left.and_not(blocked);
         } else if !self.nodes.is_empty() && left.any() {
-            // uninitialised, as above: entries below `sp` are written before they are
-            // read (its zeroing cost 12 stores on every shadow packet)
-            let mut stack = [MaybeUninit::<u32>::uninit(); STACK_SIZE];
-            stack[0] = MaybeUninit::new(0);
-            let mut sp = 1;
-            while sp > 0 {
-                sp -= 1;
-                // SAFETY: entries 0..sp (before the decrement) were written.
-                let node = &self.nodes[unsafe { stack[sp].assume_init() } as usize];
+            let mut stack = Stack::<u32, STACK_SIZE>::new();
+            stack.push(0);
+            while let Some(ni) = stack.pop() {
+                let node = &self.nodes[ni as usize];
                 steps.boxes += 1;
                 let m = node.intersect_x8(r, left, t_max);
                 if m.none() {
@@ -492,7 +473,7 @@ impl Bvh {
                 if node.is_leaf() {
                     let count = node.count() as usize;
                     steps.leaf(node.kind(), count, m.count());
-                    let blocked = self.prims.occluded_x8(
+                    let blocked = self.prims.occluded_x8::<T>(
                         node.kind(),
                         node.first as usize,
                         count,
@@ -506,9 +487,8 @@ impl Bvh {
                     }
                 } else {
                     let far_first = r.octant >> node.axis() & 1;
-                    stack[sp] = MaybeUninit::new(node.first + (1 - far_first));
-                    stack[sp + 1] = MaybeUninit::new(node.first + far_first);
-                    sp += 2;
+                    stack.push(node.first + (1 - far_first));
+                    stack.push(node.first + far_first);
                 }
             }
         }

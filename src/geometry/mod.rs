@@ -20,11 +20,12 @@ pub mod triangle;
 use glam::{DVec3, Vec3};
 use wide::{f32x8, i32x8};
 
-use crate::bvh::Aabb;
+use crate::math::Aabb;
 use crate::math::Ray;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::scene::parse::is_degenerate_triangle;
 use crate::scene::{Scene, Shape};
+use triangle::TriangleKernel;
 
 /// What a reference kernel reports for a hit: the distance, for triangles the
 /// barycentric coordinates (b0, b1, b2) of the hit point, and for compound shapes
@@ -140,29 +141,21 @@ pub enum PrimKind {
     FreeQuadric = 3,
     /// The floor: tested beside the BVH, after everything else.
     Floor = 4,
-    /// The triangles (the same `PrimSet::triangles`) under the plain Möller–Trumbore
-    /// test instead of the watertight one: profile knob `triangle_test = "moller"`,
-    /// chosen once per scene when the primitives are built ([`PrimSet::moller`]).
-    TriangleMoller = 5,
 }
 
 impl PrimKind {
-    pub const BVH_KINDS: [PrimKind; 4] = [
-        PrimKind::Sphere,
-        PrimKind::Triangle,
-        PrimKind::Quadric,
-        PrimKind::TriangleMoller,
-    ];
+    pub const BVH_KINDS: [PrimKind; 3] = [PrimKind::Sphere, PrimKind::Triangle, PrimKind::Quadric];
 
-    pub fn from_u32(k: u32) -> PrimKind {
-        match k {
+    /// The kind numbered `k`, if there is one (the miss code's bits are none).
+    pub fn from_bits(k: u32) -> Option<PrimKind> {
+        Some(match k {
             0 => PrimKind::Sphere,
             1 => PrimKind::Triangle,
             2 => PrimKind::Quadric,
             3 => PrimKind::FreeQuadric,
-            5 => PrimKind::TriangleMoller,
-            _ => PrimKind::Floor,
-        }
+            4 => PrimKind::Floor,
+            _ => return None,
+        })
     }
 }
 
@@ -176,14 +169,18 @@ pub fn prim_code(kind: PrimKind, index: usize) -> i32 {
     ((kind as u32) << INDEX_BITS | index as u32) as i32
 }
 
-/// Splits a primitive code into kind and index.
+/// Splits a hit's primitive code into kind and index; `None` for the miss code (−1).
 #[inline]
-pub fn split_code(code: i32) -> (PrimKind, usize) {
+pub fn split_code(code: i32) -> Option<(PrimKind, usize)> {
     let c = code as u32;
-    (
-        PrimKind::from_u32(c >> INDEX_BITS),
-        (c & ((1 << INDEX_BITS) - 1)) as usize,
-    )
+    let kind = PrimKind::from_bits(c >> INDEX_BITS)?;
+    Some((kind, (c & ((1 << INDEX_BITS) - 1)) as usize))
+}
+
+/// [`split_code`] of a code known to be a hit's.
+#[inline]
+fn hit_code(code: i32) -> (PrimKind, usize) {
+    split_code(code).expect("the primitive code of a hit")
 }
 
 /// A hit of the single-ray path: distance, primitive code (−1: none), barycentrics.
@@ -276,9 +273,6 @@ pub struct PrimSet {
     pub any_below: bool,
     /// Some object lies wholly above the floor plane.
     pub any_above: bool,
-    /// The triangles are of kind [`PrimKind::TriangleMoller`] (plain test), not
-    /// [`PrimKind::Triangle`] (watertight).
-    pub moller: bool,
     /// The world point of the frame's origin.
     pub base: DVec3,
     /// The spheres and quadrics of the scene in world coordinates, by object index
@@ -387,7 +381,7 @@ impl PrimSet {
     /// shows through the floor; one lying on it (a prism's base) still wins.
     #[cold]
     fn floor_first(&self, code: i32, t: f32, o: DVec3, d: DVec3, floor_z: f32) -> bool {
-        let (kind, i) = split_code(code);
+        let (kind, i) = hit_code(code);
         let t = t as f64;
         let nearest = |(a, b): (f64, f64)| if (a - t).abs() <= (b - t).abs() { a } else { b };
         // spheres and quadrics from their world data (frame rounding of a centre
@@ -398,7 +392,7 @@ impl PrimSet {
         let curved =
             (self.curved.binary_search_by_key(&obj, |c| c.0).ok()).map(|k| &self.curved[k].1);
         let (t_obj, t_floor) = match (kind, curved) {
-            (PrimKind::Triangle | PrimKind::TriangleMoller, _) => (
+            (PrimKind::Triangle, _) => (
                 self.triangles[i].plane_t_f64(o, d),
                 (floor_z as f64 - o.z) / d.z,
             ),
@@ -442,9 +436,7 @@ impl PrimSet {
     pub fn len(&self, kind: PrimKind) -> usize {
         match kind {
             PrimKind::Sphere => self.spheres.len(),
-            PrimKind::Triangle if self.moller => 0,
-            PrimKind::TriangleMoller if !self.moller => 0,
-            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles.len(),
+            PrimKind::Triangle => self.triangles.len(),
             PrimKind::Quadric => self.quadrics.len(),
             PrimKind::FreeQuadric => self.free_quadrics.len(),
             PrimKind::Floor => self.floor.is_some() as usize,
@@ -455,7 +447,7 @@ impl PrimSet {
     pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
         let b = match kind {
             PrimKind::Sphere => self.spheres[i].bounds(),
-            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].bounds(),
+            PrimKind::Triangle => self.triangles[i].bounds(),
             PrimKind::Quadric => self.quadrics[i].bounds().expect("bounded quadric"),
             PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
         };
@@ -474,29 +466,46 @@ impl PrimSet {
         )
     }
 
-    /// The scene object of a primitive code (the floor: u32::MAX, it loses every tie).
+    /// The scene object of a hit's primitive code (the floor: u32::MAX, it loses every
+    /// tie).
     pub fn object(&self, code: i32) -> u32 {
-        let (kind, i) = split_code(code);
+        let (kind, i) = hit_code(code);
         match kind {
             PrimKind::Sphere => self.sphere_obj[i],
-            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangle_obj[i],
+            PrimKind::Triangle => self.triangle_obj[i],
             PrimKind::Quadric => self.quadric_obj[i],
             PrimKind::FreeQuadric => self.free_quadric_obj[i],
             PrimKind::Floor => u32::MAX,
         }
     }
 
-    /// Records a packet kernel's hits (lanes `m` at `t`) of primitive `code` in `hit`:
-    /// nearer wins; an exact tie goes to the lower object index.
+    /// Whether a hit of primitive `code` at exactly the t of the held hit `held` wins
+    /// the tie: the lower object index (the file's order; the floor, u32::MAX, loses
+    /// every tie), then the lower primitive code (one object's triangles), so the
+    /// winner never depends on the order a walk meets them in.
     #[inline]
-    fn record_x8(&self, hit: &mut HitPacket8, m: Mask8, t: f32x8, uv: (f32x8, f32x8), code: i32) {
+    fn wins_tie(&self, code: i32, held: i32) -> bool {
+        (self.object(code), code) < (self.object(held), held)
+    }
+
+    /// Records a packet kernel's hits (lanes `m` at `t`, barycentrics `uv`) of
+    /// primitive `code` in `hit`: nearer wins, exact ties by [`PrimSet::wins_tie`].
+    /// Every walk records through here or [`PrimSet::record_1`].
+    #[inline]
+    pub(crate) fn record_x8(
+        &self,
+        hit: &mut HitPacket8,
+        m: Mask8,
+        t: f32x8,
+        uv: (f32x8, f32x8),
+        code: i32,
+    ) {
         let mut closer = m & t.lt(hit.t);
         let tie = m & t.eq8(hit.t) & hit.hit_mask();
         if tie.any() {
-            let obj = self.object(code);
             let mut extra = 0;
             for lane in 0..8 {
-                if tie.lane(lane) && obj < self.object(hit.prim_lane(lane)) {
+                if tie.lane(lane) && self.wins_tie(code, hit.prim_lane(lane)) {
                     extra |= 1 << lane;
                 }
             }
@@ -511,9 +520,10 @@ impl PrimSet {
         hit.v = closer.select(uv.1, hit.v);
     }
 
+    /// Single-ray twin of [`PrimSet::record_x8`].
     #[inline]
-    fn record_1(&self, hit: &mut Hit1, t: f32, u: f32, v: f32, code: i32) {
-        if t < hit.t || (t == hit.t && hit.is_hit() && self.object(code) < self.object(hit.prim)) {
+    pub(crate) fn record_1(&self, hit: &mut Hit1, t: f32, u: f32, v: f32, code: i32) {
+        if t < hit.t || (t == hit.t && hit.is_hit() && self.wins_tie(code, hit.prim)) {
             *hit = Hit1 {
                 t,
                 prim: code,
@@ -526,7 +536,7 @@ impl PrimSet {
     /// Closest-hit test of primitives `first..first + count` of one kind (a BVH leaf,
     /// or the list beside it) against the active lanes of a packet.
     #[inline]
-    pub fn intersect_x8(
+    pub fn intersect_x8<T: TriangleKernel>(
         &self,
         kind: PrimKind,
         first: usize,
@@ -544,11 +554,7 @@ impl PrimSet {
                     self.record_x8(hit, m, t, zero, code);
                 }
                 PrimKind::Triangle => {
-                    let (m, t, u, v) = self.triangles[i].intersect_x8(r, active, hit.t);
-                    self.record_x8(hit, m, t, (u, v), code);
-                }
-                PrimKind::TriangleMoller => {
-                    let (m, t, u, v) = moller::intersect_x8(&self.triangles[i], r, active, hit.t);
+                    let (m, t, u, v) = T::intersect_x8(&self.triangles[i], r, active, hit.t);
                     self.record_x8(hit, m, t, (u, v), code);
                 }
                 PrimKind::Quadric => {
@@ -652,7 +658,7 @@ impl PrimSet {
     /// Any-hit test: the lanes of `active` blocked by one of the primitives with
     /// 0 < t < t_max. Stops as soon as every active lane is blocked.
     #[inline]
-    pub fn occluded_x8(
+    pub fn occluded_x8<T: TriangleKernel>(
         &self,
         kind: PrimKind,
         first: usize,
@@ -665,8 +671,7 @@ impl PrimSet {
         for i in first..first + count {
             let m = match kind {
                 PrimKind::Sphere => self.spheres[i].occluded_x8(r, left, t_max),
-                PrimKind::Triangle => self.triangles[i].occluded_x8(r, left, t_max),
-                PrimKind::TriangleMoller => moller::occluded_x8(&self.triangles[i], r, left, t_max),
+                PrimKind::Triangle => T::occluded_x8(&self.triangles[i], r, left, t_max),
                 PrimKind::Quadric => self.quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::FreeQuadric => self.free_quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::Floor => match &self.floor {
@@ -684,7 +689,7 @@ impl PrimSet {
 
     /// Single-ray twin of [`PrimSet::intersect_x8`].
     #[inline]
-    pub fn intersect_1(
+    pub fn intersect_1<T: TriangleKernel>(
         &self,
         kind: PrimKind,
         first: usize,
@@ -701,12 +706,7 @@ impl PrimSet {
                     }
                 }
                 PrimKind::Triangle => {
-                    if let Some((t, u, v)) = self.triangles[i].intersect_1(r, hit.t) {
-                        self.record_1(hit, t, u, v, code);
-                    }
-                }
-                PrimKind::TriangleMoller => {
-                    if let Some((t, u, v)) = moller::intersect_1(&self.triangles[i], r, hit.t) {
+                    if let Some((t, u, v)) = T::intersect_1(&self.triangles[i], r, hit.t) {
                         self.record_1(hit, t, u, v, code);
                     }
                 }
@@ -755,7 +755,7 @@ impl PrimSet {
 
     /// Single-ray twin of [`PrimSet::occluded_x8`].
     #[inline]
-    pub fn occluded_1(
+    pub fn occluded_1<T: TriangleKernel>(
         &self,
         kind: PrimKind,
         first: usize,
@@ -765,8 +765,7 @@ impl PrimSet {
     ) -> bool {
         (first..first + count).any(|i| match kind {
             PrimKind::Sphere => self.spheres[i].occluded_1(r, t_max),
-            PrimKind::Triangle => self.triangles[i].occluded_1(r, t_max),
-            PrimKind::TriangleMoller => moller::occluded_1(&self.triangles[i], r, t_max),
+            PrimKind::Triangle => T::occluded_1(&self.triangles[i], r, t_max),
             PrimKind::Quadric => self.quadrics[i].occluded_1(r, t_max),
             PrimKind::FreeQuadric => self.free_quadrics[i].occluded_1(r, t_max),
             PrimKind::Floor => self.floor.is_some_and(|f| f.occluded_1(r, t_max)),
@@ -784,10 +783,10 @@ impl PrimSet {
         u: f32x8,
         v: f32x8,
     ) -> Option<Surface8> {
-        let (kind, i) = split_code(code);
+        let (kind, i) = split_code(code)?;
         Some(match kind {
             PrimKind::Sphere => self.spheres[i].surface_x8(r, t),
-            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].surface_x8(u, v),
+            PrimKind::Triangle => self.triangles[i].surface_x8(u, v),
             PrimKind::Quadric => self.quadrics[i].surface_x8(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_x8(r, t),
             PrimKind::Floor => return None,
@@ -796,10 +795,10 @@ impl PrimSet {
 
     /// Surface record of a hit, computed once for the winner.
     pub fn surface_1(&self, code: i32, r: &Ray1, t: f32, u: f32, v: f32) -> Surface32 {
-        let (kind, i) = split_code(code);
+        let (kind, i) = hit_code(code);
         match kind {
             PrimKind::Sphere => self.spheres[i].surface_1(r, t),
-            PrimKind::Triangle | PrimKind::TriangleMoller => self.triangles[i].surface_1(u, v),
+            PrimKind::Triangle => self.triangles[i].surface_1(u, v),
             PrimKind::Quadric => self.quadrics[i].surface_1(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_1(r, t),
             PrimKind::Floor => self.floor.expect("floor hit").surface_1(r, t),

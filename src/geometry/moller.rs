@@ -1,19 +1,90 @@
 //! The plain Möller–Trumbore triangle test (Möller and Trumbore 1997), the profile knob
 //! `triangle_test = "moller"`: fewer operations than the watertight test
 //! ([`super::triangle`]), but each triangle rounds its barycentrics on its own, so a
-//! ray through an edge shared by two triangles can miss both (robustness.md: 6.3 % of
-//! rays aimed at a quad's diagonal here; `tests/extremes.rs` measures the leak). The
-//! primitives are the same [`Triangle32`]s; the kind code [`super::PrimKind::TriangleMoller`]
-//! picks this kernel per BVH leaf, chosen once per scene.
+//! ray through an edge shared by two triangles can miss both (`tests/extremes.rs`
+//! measures the leak). The same [`Triangle32`]s and blocks, another instantiation of
+//! [`TriangleKernel`].
 //!
-//! Barycentrics are returned as (b1, b2), the weights of vertices 1 and 2, so the
-//! watertight path's [`Triangle32::surface_1`] applies unchanged.
+//! Barycentrics are returned as (b1, b2), the weights of vertices 1 and 2, so
+//! [`Triangle32::surface_1`] applies unchanged.
 
 use glam::Vec3;
 use wide::f32x8;
 
-use super::triangle::Triangle32;
+use super::triangle::{Hits8, Triangle8, Triangle32, TriangleKernel};
 use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8};
+
+/// The Möller–Trumbore test as a [`TriangleKernel`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Moller;
+
+/// One ray splatted for [`Moller::intersect_1x8`].
+#[derive(Clone, Copy, Debug)]
+pub struct MollerRay8 {
+    origin: Vec3x8,
+    dir: Vec3x8,
+}
+
+impl TriangleKernel for Moller {
+    type Ray1x8 = MollerRay8;
+
+    #[inline(always)]
+    fn prepare(r: &Ray1) -> MollerRay8 {
+        MollerRay8 {
+            origin: Vec3x8::splat(r.origin),
+            dir: Vec3x8::splat(r.dir),
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> Option<(f32, f32, f32)> {
+        intersect_1(tri, r, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_splat_x8(v: [Vec3x8; 3], r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8 {
+        lanes(v, r.origin, r.dir, active, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_1x8<const KZ: usize>(
+        b: &Triangle8,
+        r: &MollerRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> Hits8 {
+        let v = b.v.map(|p| Vec3x8::new(p[0], p[1], p[2]));
+        lanes(v, r.origin, r.dir, active, f32x8::splat(t_max))
+    }
+}
+
+/// Eight tests at once, lane i: triangle `v[..]` lane i against ray (o, d) lane i
+/// (the packet kernel splats the triangle, the 1×8 kernel the ray); the operations of
+/// [`intersect_1`] in its order.
+#[inline(always)]
+fn lanes(v: [Vec3x8; 3], o: Vec3x8, d: Vec3x8, active: Mask8, t_max: f32x8) -> Hits8 {
+    let zero = f32x8::ZERO;
+    let [v0, v1, v2] = v;
+    let (e1, e2) = (v1 - v0, v2 - v0);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    let inv = f32x8::splat(1.0) / det;
+    let s = o - v0;
+    let b1 = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let b2 = d.dot(q) * inv;
+    let t = e2.dot(q) * inv;
+    // NaN (det = 0) fails every comparison
+    let m = active
+        & !det.eq8(zero)
+        & b1.ge(zero)
+        & b1.le(f32x8::splat(1.0))
+        & b2.ge(zero)
+        & (b1 + b2).le(f32x8::splat(1.0))
+        & t.gt(zero)
+        & t.le(t_max);
+    (m, t, b1, b2)
+}
 
 /// Hit with 0 < t <= t_max: (t, b1, b2). A determinant of exactly 0 (the ray in the
 /// triangle's plane) misses.
@@ -39,48 +110,6 @@ pub fn intersect_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> Option<(f32, f32, 
     }
     let t = e2.dot(q) * inv;
     (t > 0.0 && t <= t_max).then_some((t, b1, b2))
-}
-
-#[inline]
-pub fn occluded_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> bool {
-    intersect_1(tri, r, t_max).is_some_and(|h| h.0 < t_max)
-}
-
-/// Packet twin of [`intersect_1`]: lanes with a hit in (0, t_max], t, b1, b2.
-#[inline]
-pub fn intersect_x8(
-    tri: &Triangle32,
-    r: &RayPacket8,
-    active: Mask8,
-    t_max: f32x8,
-) -> (Mask8, f32x8, f32x8, f32x8) {
-    let zero = f32x8::ZERO;
-    let [v0, v1, v2] = tri.v;
-    let (e1, e2) = (Vec3x8::splat(v1 - v0), Vec3x8::splat(v2 - v0));
-    let p = r.dir.cross(e2);
-    let det = e1.dot(p);
-    let inv = f32x8::splat(1.0) / det;
-    let s = r.origin - Vec3x8::splat(v0);
-    let b1 = s.dot(p) * inv;
-    let q = s.cross(e1);
-    let b2 = r.dir.dot(q) * inv;
-    let t = e2.dot(q) * inv;
-    // NaN (det = 0) fails every comparison
-    let m = active
-        & !det.eq8(zero)
-        & b1.ge(zero)
-        & b1.le(f32x8::splat(1.0))
-        & b2.ge(zero)
-        & (b1 + b2).le(f32x8::splat(1.0))
-        & t.gt(zero)
-        & t.le(t_max);
-    (m, t, b1, b2)
-}
-
-#[inline]
-pub fn occluded_x8(tri: &Triangle32, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
-    let (m, t, _, _) = intersect_x8(tri, r, active, t_max);
-    m & t.lt(t_max)
 }
 
 #[cfg(test)]
@@ -131,7 +160,7 @@ mod tests {
         let d: [Vec3; 8] =
             std::array::from_fn(|k| Vec3::new(0.1 * k as f32, -0.2, -1.0).normalize());
         let r = RayPacket8::from_lanes(&o, &d);
-        let (m, tt, b1, b2) = intersect_x8(&t, &r, Mask8::ALL, f32x8::splat(f32::INFINITY));
+        let (m, tt, b1, b2) = Moller::intersect_x8(&t, &r, Mask8::ALL, f32x8::splat(f32::INFINITY));
         for k in 0..8 {
             let one = intersect_1(&t, &r.ray(k), f32::INFINITY);
             assert_eq!(m.lane(k), one.is_some(), "lane {k}");
@@ -140,6 +169,42 @@ mod tests {
                     (a, u, v),
                     (tt.as_array()[k], b1.as_array()[k], b2.as_array()[k])
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn block_lanes_equal_single_rays_per_triangle() {
+        // eight triangles around one ray, some hit, some missed, one in its plane
+        let tris: Vec<Triangle32> = (0..8)
+            .map(|k| {
+                let s = 0.5 + k as f64 * 0.4;
+                let z = if k == 7 { 3.0 } else { -(k as f64) };
+                Triangle32::new(
+                    &[
+                        DVec3::new(-s, -s, z),
+                        DVec3::new(s + 0.1, -s, z + 0.2),
+                        DVec3::new(-s, s, z - 0.1),
+                    ],
+                    DVec3::ZERO,
+                )
+            })
+            .collect();
+        let b = Triangle8::new(&tris);
+        for d in [
+            Vec3::new(0.3, 0.2, -1.0),
+            Vec3::new(-0.5, 0.9, -0.4),
+            Vec3::new(1.0, 0.0, 0.0),
+        ] {
+            let r = Ray1::new(Vec3::new(0.2, -0.1, 3.0), d.normalize());
+            let prepared = Moller::prepare(&r);
+            let (m, t, u, v) = Moller::intersect_1x8::<2>(&b, &prepared, Mask8::ALL, 50.0);
+            for (k, tri) in tris.iter().enumerate() {
+                let one = intersect_1(tri, &r, 50.0);
+                assert_eq!(m.lane(k), one.is_some(), "{d}: triangle {k}");
+                if let Some(h) = one {
+                    assert_eq!(h, (t.as_array()[k], u.as_array()[k], v.as_array()[k]));
+                }
             }
         }
     }

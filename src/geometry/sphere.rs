@@ -10,7 +10,7 @@ use glam::Vec3;
 use wide::f32x8;
 
 use super::{Surface8, Surface32, SurfacePoint};
-use crate::bvh::Aabb;
+use crate::math::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
 use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};

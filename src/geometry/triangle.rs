@@ -13,7 +13,7 @@ use glam::Vec3;
 use wide::f32x8;
 
 use super::{RefHit, Surface8, Surface32, SurfacePoint};
-use crate::bvh::Aabb;
+use crate::math::Aabb;
 use crate::math::Ray;
 use crate::math::float::gamma;
 use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
@@ -491,6 +491,106 @@ impl Triangle8 {
     ) -> Mask8 {
         let (m, t, _, _) = self.intersect_1x8_kz::<KZ>(r, active, t_max);
         m & t.lt(f32x8::splat(t_max))
+    }
+}
+
+// ---------------------------------------------------------------- the test as a type
+
+/// A packet kernel's answer: lanes with a hit in (0, t_max], t, b1, b2.
+pub type Hits8 = (Mask8, f32x8, f32x8, f32x8);
+
+/// The ray/triangle test of the fast path as a type: every triangle kernel of one
+/// instantiation (profile knob `triangle_test`, chosen once per frame), at every width.
+/// Each lane of a packet or 1×8 kernel returns bit for bit what `intersect_1` returns
+/// for its ray and triangle.
+pub trait TriangleKernel: Copy + Send + Sync + 'static {
+    /// One ray prepared for the 1×8 kernel.
+    type Ray1x8: Copy;
+
+    fn prepare(r: &Ray1) -> Self::Ray1x8;
+
+    /// Nearest hit with 0 < t <= t_max (inclusive: the caller breaks exact ties):
+    /// (t, b1, b2), the barycentrics of the second and third vertex.
+    fn intersect_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> Option<(f32, f32, f32)>;
+
+    /// The triangle whose vertices `v` are given splatted against a packet.
+    fn intersect_splat_x8(v: [Vec3x8; 3], r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8;
+
+    /// One ray (whose largest direction component is axis `KZ`) against the eight
+    /// triangles of a block: lane i is triangle i.
+    fn intersect_1x8<const KZ: usize>(
+        b: &Triangle8,
+        r: &Self::Ray1x8,
+        active: Mask8,
+        t_max: f32,
+    ) -> Hits8;
+
+    /// Whether the triangle meets the ray with 0 < t < t_max.
+    #[inline(always)]
+    fn occluded_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> bool {
+        Self::intersect_1(tri, r, t_max).is_some_and(|h| h.0 < t_max)
+    }
+
+    /// A packet against one triangle.
+    #[inline(always)]
+    fn intersect_x8(tri: &Triangle32, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8 {
+        // (splatted one by one: a `map` over the array was left as a call)
+        let [a, b, c] = tri.v;
+        let v = [Vec3x8::splat(a), Vec3x8::splat(b), Vec3x8::splat(c)];
+        Self::intersect_splat_x8(v, r, active, t_max)
+    }
+
+    /// Lanes of `active` whose ray meets the triangle with 0 < t < t_max.
+    #[inline(always)]
+    fn occluded_x8(tri: &Triangle32, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        let (m, t, _, _) = Self::intersect_x8(tri, r, active, t_max);
+        m & t.lt(t_max)
+    }
+
+    /// Lanes of `active` whose triangle meets the ray with 0 < t < t_max.
+    #[inline(always)]
+    fn occluded_1x8<const KZ: usize>(
+        b: &Triangle8,
+        r: &Self::Ray1x8,
+        active: Mask8,
+        t_max: f32,
+    ) -> Mask8 {
+        let (m, t, _, _) = Self::intersect_1x8::<KZ>(b, r, active, t_max);
+        m & t.lt(f32x8::splat(t_max))
+    }
+}
+
+/// The watertight test of Woop, Benthin and Wald (2013): no ray passes between two
+/// triangles sharing an edge. The default.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Watertight;
+
+impl TriangleKernel for Watertight {
+    type Ray1x8 = TriRay8;
+
+    #[inline(always)]
+    fn prepare(r: &Ray1) -> TriRay8 {
+        TriRay8::new(r)
+    }
+
+    #[inline(always)]
+    fn intersect_1(tri: &Triangle32, r: &Ray1, t_max: f32) -> Option<(f32, f32, f32)> {
+        tri.intersect_1(r, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_splat_x8(v: [Vec3x8; 3], r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8 {
+        intersect_splat_x8(v, r, active, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_1x8<const KZ: usize>(
+        b: &Triangle8,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> Hits8 {
+        b.intersect_1x8_kz::<KZ>(r, active, t_max)
     }
 }
 

@@ -66,6 +66,18 @@ pub fn unit(v: DVec3) -> Option<DVec3> {
     (v / m).try_normalize()
 }
 
+/// The largest f32 not above x.
+pub fn f32_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x { f.next_down() } else { f }
+}
+
+/// The smallest f32 not below x.
+pub fn f32_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x { f.next_up() } else { f }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,7 +1,9 @@
-//! Rays and floating-point error bookkeeping shared by every path.
+//! Rays, boxes and floating-point error bookkeeping shared by every path.
 
+pub mod aabb;
 pub mod float;
 pub mod packet;
 pub mod ray;
 
+pub use aabb::Aabb;
 pub use ray::Ray;

@@ -57,11 +57,6 @@ impl Detail {
 /// (Lights do not count: a shadow ray starts at the surface, so a far light only sets
 /// its direction.)
 pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
-    let triangles = if prims.moller {
-        PrimKind::TriangleMoller
-    } else {
-        PrimKind::Triangle
-    };
     let floor_distance = |c: Vec3| {
         prims.floor.as_ref().map_or(0.0, |f| {
             let nearest = Vec3::new(c.x.clamp(f.x0, f.x1), c.y.clamp(f.y0, f.y1), f.z);
@@ -69,7 +64,7 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
         })
     };
     let mut smallest: Option<(f32, Detail)> = None;
-    for kind in [PrimKind::Sphere, triangles, PrimKind::Quadric] {
+    for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
             let b = prims.bounds(kind, i);
             let size = (b.hi - b.lo).length();

@@ -128,7 +128,7 @@ impl PacketRenderer {
                 });
             }
             // one primitive, one material (the floor's colour is per point)
-            let on_floor = split_code(code).0 == PrimKind::Floor;
+            let on_floor = split_code(code).is_some_and(|(k, _)| k == PrimKind::Floor);
             let m = if on_floor {
                 &self.floor
             } else {

@@ -305,11 +305,12 @@ impl<S: Settings> Tracer<'_, S> {
 }
 
 /// The photon pass traces through the renderer's BVH (in its f32 frame).
-impl PhotonTracer for PacketRenderer {
+impl<S: Settings> PhotonTracer for Tracer<'_, S> {
     fn nearest(&self, ray: &Ray) -> Option<PhotonHit> {
         let r = Ray1::from_f64(ray.origin, ray.dir, self.base);
         let mut h = Hit1::new(f32::INFINITY);
-        self.bvh.intersect_1(&r, &mut h, &mut Steps::default());
+        self.bvh
+            .intersect_1::<S::Tri>(&r, &mut h, &mut Steps::default());
         if !h.is_hit() {
             return None;
         }

@@ -37,6 +37,8 @@ use super::{RenderSettings, Rendered};
 use crate::bvh::Bvh;
 use crate::geometry::PrimSet;
 use crate::geometry::floor::Floor32;
+use crate::geometry::moller::Moller;
+use crate::geometry::triangle::{TriangleKernel, Watertight};
 use crate::math::packet::{Cmp8, Vec3x8, offset_origin_x8};
 use crate::scene::{Floor, Glass, Scene};
 use lights::{Cone32, Light32, Mat32};
@@ -85,9 +87,7 @@ impl PacketRenderer {
         options: &PacketOptions,
         caustic: &CausticSettings,
     ) -> PacketRenderer {
-        let mut prims = PrimSet::from_scene(scene, base);
-        prims.moller = options.triangle_test == TriangleTest::Moller;
-        let bvh = Bvh::build(prims);
+        let bvh = Bvh::build(PrimSet::from_scene(scene, base));
         let rel = |p: DVec3| (p - base).as_vec3();
         // A light keeps its side of the floor plane (z = 0) in the f32 frame: rounded
         // there, one within half an ulp of the plane would land on it, light nothing
@@ -142,7 +142,7 @@ impl PacketRenderer {
                 .iter()
                 .map(|o| super::caustic::glass_of(&o.shape))
                 .collect();
-            r.caustics = CausticMap::build(scene, caustic, &r);
+            r.caustics = r.with_tracer(PhotonPass { scene, caustic });
         }
         r
     }
@@ -183,19 +183,36 @@ impl PacketRenderer {
     /// The tracer of this renderer's options and scene, chosen once: the compiled
     /// instance of [`Settings`] they select.
     pub fn frames(&self) -> Box<dyn FrameRenderer + '_> {
-        match self.options.ray_offset {
-            RayOffset::ErrorBound => self.with_offset(ErrorBound),
-            RayOffset::Epsilon(e) => self.with_offset(Epsilon(e)),
+        self.with_tracer(Frames)
+    }
+
+    /// Hands `job` the tracer of this renderer's options and scene: picks the compiled
+    /// instance of [`Settings`], the one dispatch on the options.
+    fn with_tracer<'r, J: TracerJob<'r>>(&'r self, job: J) -> J::Out {
+        match self.options.triangle_test {
+            TriangleTest::Watertight => self.with_kernel::<Watertight, J>(job),
+            TriangleTest::Moller => self.with_kernel::<Moller, J>(job),
         }
     }
 
-    fn with_offset<O: Offset>(&self, offset: O) -> Box<dyn FrameRenderer + '_> {
+    fn with_kernel<'r, T: TriangleKernel, J: TracerJob<'r>>(&'r self, job: J) -> J::Out {
+        match self.options.ray_offset {
+            RayOffset::ErrorBound => self.with_offset::<T, _, J>(ErrorBound, job),
+            RayOffset::Epsilon(e) => self.with_offset::<T, _, J>(Epsilon(e), job),
+        }
+    }
+
+    fn with_offset<'r, T: TriangleKernel, O: Offset, J: TracerJob<'r>>(
+        &'r self,
+        offset: O,
+        job: J,
+    ) -> J::Out {
         let r = self;
         match (self.options.shadow_any_hit, self.has_glass()) {
-            (true, false) => Box::new(Tracer::<Fixed<true, false, O>> { r, offset }),
-            (false, false) => Box::new(Tracer::<Fixed<false, false, O>> { r, offset }),
-            (true, true) => Box::new(Tracer::<Fixed<true, true, O>> { r, offset }),
-            (false, true) => Box::new(Tracer::<Fixed<false, true, O>> { r, offset }),
+            (true, false) => job.run(Tracer::<Fixed<true, false, O, T>> { r, offset }),
+            (false, false) => job.run(Tracer::<Fixed<false, false, O, T>> { r, offset }),
+            (true, true) => job.run(Tracer::<Fixed<true, true, O, T>> { r, offset }),
+            (false, true) => job.run(Tracer::<Fixed<false, true, O, T>> { r, offset }),
         }
     }
 
@@ -213,15 +230,50 @@ pub(crate) trait Settings: Send + Sync + 'static {
     const GLASS: bool;
     /// How secondary rays leave surfaces.
     type Offset: Offset;
+    /// The ray/triangle test.
+    type Tri: TriangleKernel;
 }
 
 /// The [`Settings`] of one compiled instance.
-pub(crate) struct Fixed<const ANY_HIT: bool, const GLASS: bool, O>(PhantomData<O>);
+pub(crate) struct Fixed<const ANY_HIT: bool, const GLASS: bool, O, T>(PhantomData<(O, T)>);
 
-impl<const ANY_HIT: bool, const GLASS: bool, O: Offset> Settings for Fixed<ANY_HIT, GLASS, O> {
+impl<const ANY_HIT: bool, const GLASS: bool, O: Offset, T: TriangleKernel> Settings
+    for Fixed<ANY_HIT, GLASS, O, T>
+{
     const ANY_HIT: bool = ANY_HIT;
     const GLASS: bool = GLASS;
     type Offset = O;
+    type Tri = T;
+}
+
+/// Something done with the tracer of a renderer's settings
+/// ([`PacketRenderer::with_tracer`]).
+trait TracerJob<'r> {
+    type Out;
+    fn run<S: Settings>(self, tracer: Tracer<'r, S>) -> Self::Out;
+}
+
+/// Boxes the tracer for the frame loop.
+struct Frames;
+
+impl<'r> TracerJob<'r> for Frames {
+    type Out = Box<dyn FrameRenderer + 'r>;
+    fn run<S: Settings>(self, tracer: Tracer<'r, S>) -> Self::Out {
+        Box::new(tracer)
+    }
+}
+
+/// Traces the caustic photons through the renderer's BVH.
+struct PhotonPass<'a> {
+    scene: &'a Scene,
+    caustic: &'a CausticSettings,
+}
+
+impl<'r> TracerJob<'r> for PhotonPass<'_> {
+    type Out = Option<CausticMap>;
+    fn run<S: Settings>(self, tracer: Tracer<'r, S>) -> Self::Out {
+        CausticMap::build(self.scene, self.caustic, &tracer)
+    }
 }
 
 /// How a secondary ray's origin leaves the surface it starts on.

@@ -66,9 +66,10 @@ impl<S: Settings> Tracer<'_, S> {
     pub(super) fn closest(&self, r: &RayPacket8, active: Mask8, steps: &mut Steps) -> HitPacket8 {
         let mut hit = HitPacket8::new(f32x8::splat(f32::INFINITY));
         if active.count() <= self.options.single_ray_lanes {
-            self.bvh.intersect_x8_lanes(r, active, &mut hit, steps);
+            self.bvh
+                .intersect_x8_lanes::<S::Tri>(r, active, &mut hit, steps);
         } else {
-            self.bvh.intersect_x8(r, active, &mut hit, steps);
+            self.bvh.intersect_x8::<S::Tri>(r, active, &mut hit, steps);
         }
         hit
     }
@@ -82,9 +83,10 @@ impl<S: Settings> Tracer<'_, S> {
         steps: &mut Steps,
     ) -> Mask8 {
         if active.count() <= self.options.single_ray_lanes {
-            self.bvh.occluded_x8_lanes(r, active, t_max, steps)
+            self.bvh
+                .occluded_x8_lanes::<S::Tri>(r, active, t_max, steps)
         } else {
-            self.bvh.occluded_x8(r, active, t_max, steps)
+            self.bvh.occluded_x8::<S::Tri>(r, active, t_max, steps)
         }
     }
 

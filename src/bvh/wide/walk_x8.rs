@@ -11,10 +11,9 @@
 //! leaves. In a leaf, the frustum test of a triangle block's per-lane binary leaf boxes
 //! picks the triangles to test (all of them in a block of one binary leaf, whose box
 //! the frustum has passed); each is tested against the whole packet with the packet
-//! kernel ([`intersect_splat_x8`], that of `Triangle32::intersect_x8`, the binary
-//! packet walk's), and a lane's
+//! kernel (`TriangleKernel::intersect_splat_x8`, the binary packet walk's), and a lane's
 //! hit counts only when the lane also passes that triangle's binary leaf box (the
-//! single-ray wide walk's rule, see [`super::wide::TriBlock`]), so a lane reports what
+//! single-ray wide walk's rule, see [`TriBlock`]), so a lane reports what
 //! the binary walks report for it.
 //!
 //! Why the bound is exact enough to be safe: for one axis and plane p, lane i computes
@@ -26,21 +25,17 @@
 //! lane meets is met by the frustum (superset of lanes, never fewer).
 //!
 //! Contract as `bvh/mod.rs`; lanes with a non-finite origin or 1/d skip the tree (as
-//! single rays do in `wide.rs`). Step counters: `boxes` counts wide node tests, `prims`
-//! the triangles tested (each against the packet).
-
-use std::mem::MaybeUninit;
+//! single rays do in `walk_1.rs`). Step counters: `boxes` counts wide node tests,
+//! `prims` the triangles tested (each against the packet).
 
 use wide::f32x8;
 
-use super::node::BvhNode;
-use super::wide::{
-    COUNT_MASK, INTERIOR, TriBlock, WIDE_STACK, WideBvh, WideNode, pack, prefetch_lines,
-    push_ordered,
-};
-use super::{Bvh, Steps};
-use crate::geometry::triangle::intersect_splat_x8;
-use crate::geometry::{PrimKind, PrimSet, prim_code};
+use super::{Pending, TriBlock, WIDE_STACK, WideBvh};
+use crate::bvh::node::BvhNode;
+use crate::bvh::slot::{SlotRef, Stack};
+use crate::bvh::{Bvh, Steps};
+use crate::geometry::triangle::TriangleKernel;
+use crate::geometry::{PrimKind, prim_code};
 use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8};
 
 /// Largest spread of a packet served by the wide packet walk (radians between lane
@@ -65,7 +60,7 @@ pub const WIDE_PACKET_MIN_NODES: usize = 16;
 /// Interval bounds of a packet's rays, splatted, for the slab test of eight boxes at once.
 /// The entry and exit planes of each axis follow from the direction signs, a constant
 /// of the walks (`OCT` of [`Frustum::test`]).
-pub(super) struct Frustum {
+pub(crate) struct Frustum {
     /// Per axis: the origin bound subtracted from the entry plane (o_hi when 1/d > 0,
     /// o_lo otherwise) and from the exit plane (the other one).
     o_near: [f32x8; 3],
@@ -216,30 +211,6 @@ impl Frustum {
     }
 }
 
-/// Starts loading the children `bits` of `node`: whole nodes, and the first triangle
-/// block of a leaf whole (its leaf boxes, read first by the packet walk, included).
-// Measured against `WideBvh::prefetch_children` (triangle lines only): bench-trace
-// torus100k primary mode=8 --reps 20, 1 thread, nine interleaved pairs at load 5-6:
-// 14.70, 10.24, 11.52, 9.61, 11.79, 11.95, 12.80, 11.25, 10.28 Mrays/s (median 11.5)
-// against 11.08, 10.21, 10.80, 9.84, 14.35, 10.82, 10.89, 10.80, 11.00 (median 10.9).
-#[inline(always)]
-fn prefetch_children_x8(w: &WideBvh, node: &WideNode, mut bits: u32) {
-    while bits != 0 {
-        let s = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        let (child, meta) = (node.child[s] as usize, node.meta[s]);
-        if meta == INTERIOR {
-            if let Some(n) = w.nodes.get(child) {
-                prefetch_lines(n);
-            }
-        } else if meta >> 28 == PrimKind::Triangle as u32
-            && let Some(b) = w.blocks.get(child)
-        {
-            prefetch_lines(b);
-        }
-    }
-}
-
 /// `neg` in the lanes where the sign bit of `d` is set (−0 included), `pos` elsewhere.
 #[inline(always)]
 fn by_sign(d: f32x8, neg: f32x8, pos: f32x8) -> f32x8 {
@@ -259,7 +230,7 @@ fn by_sign(d: f32x8, neg: f32x8, pos: f32x8) -> f32x8 {
 /// Lanes whose origin and 1/d are finite (the others never hit a bounded primitive and
 /// would make the slab tests NaN).
 #[inline(always)]
-pub(super) fn finite_lanes(r: &RayPacket8) -> Mask8 {
+pub(crate) fn finite_lanes(r: &RayPacket8) -> Mask8 {
     let fin = |v: f32x8| (v * f32x8::ZERO).eq8(f32x8::ZERO); // ±∞ · 0 and NaN · 0: NaN
     fin(r.origin.x)
         & fin(r.origin.y)
@@ -272,7 +243,7 @@ pub(super) fn finite_lanes(r: &RayPacket8) -> Mask8 {
 /// The direction signs shared by every lane of `act` (bit k: 1/d < 0 on axis k; 1/d
 /// carries the sign of d, −0 included), or `None` when the lanes differ.
 #[inline(always)]
-pub(super) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
+pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
     let a = act.bits();
     let mut oct = 0;
     for (k, inv) in [r.inv_dir.x, r.inv_dir.y, r.inv_dir.z]
@@ -316,41 +287,8 @@ fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
         lo: [c(0), c(2), c(4)],
         first: 0,
         hi: [c(1), c(3), c(5)],
-        meta: 0,
+        slot: crate::bvh::slot::Slot::INTERIOR,
     }
-}
-
-/// Records the hits `m` at `t` of primitive `code` as `PrimSet::record_x8` does: nearer
-/// wins, an exact tie goes to the lower object index.
-#[inline]
-fn record_x8(
-    prims: &PrimSet,
-    hit: &mut HitPacket8,
-    m: Mask8,
-    t: f32x8,
-    u: f32x8,
-    v: f32x8,
-    code: i32,
-) {
-    let mut closer = m & t.lt(hit.t);
-    let tie = m & t.eq8(hit.t) & hit.hit_mask();
-    if tie.any() {
-        let obj = prims.object(code);
-        let mut extra = 0;
-        for lane in 0..8 {
-            if tie.lane(lane) && obj < prims.object(hit.prim_lane(lane)) {
-                extra |= 1 << lane;
-            }
-        }
-        closer = closer | Mask8::from_bits(extra);
-    }
-    if closer.none() {
-        return;
-    }
-    hit.t = closer.select(t, hit.t);
-    hit.prim = closer.select_i32(wide::i32x8::splat(code), hit.prim);
-    hit.u = closer.select(u, hit.u);
-    hit.v = closer.select(v, hit.v);
 }
 
 impl Bvh {
@@ -358,7 +296,7 @@ impl Bvh {
     /// `active` (finite, see [`finite_lanes`]) when they share the direction signs
     /// `octant` (see [`shared_octant`]); false (nothing done) when they spread wider
     /// than `spread` (see [`Frustum::new`]).
-    pub(super) fn intersect_x8_wide(
+    pub(crate) fn intersect_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -379,13 +317,13 @@ impl Bvh {
         with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_walk_x8(r, act, &fr, hit, steps)
+            self.frustum_walk_x8::<T>(r, act, &fr, hit, steps)
         );
         true
     }
 
     /// The frustum walk of [`Bvh::intersect_x8_wide`] for lanes of direction signs `OCT`.
-    fn frustum_walk_x8<const OCT: u32>(
+    fn frustum_walk_x8<T: TriangleKernel, const OCT: u32>(
         &self,
         r: &RayPacket8,
         act: Mask8,
@@ -396,48 +334,36 @@ impl Bvh {
         let w = &self.wide;
         // the largest nearest hit of the lanes: nothing entered beyond it can be nearer
         let mut t_hi = hmax(hit.t, act).to_array()[0];
-        // uninitialised, as in the single-ray walk; entries below `sp` are written
-        // before they are read
-        let mut refs = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
-        let mut dists = [MaybeUninit::<f32>::uninit(); WIDE_STACK];
-        let mut sp = 0usize;
-        let mut cur = pack(0, INTERIOR);
+        let mut stack = Stack::<Pending, WIDE_STACK>::new();
+        let mut cur = SlotRef::ROOT;
         'walk: loop {
-            let (child, meta) = (cur as u32, (cur >> 32) as u32);
-            if meta == INTERIOR {
-                let node = &w.nodes[child as usize];
+            if cur.slot.is_interior() {
+                let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
                 let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
                 if bits != 0 {
                     let first = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
                     if bits == 0 {
-                        cur = pack(node.child[first], node.meta[first]);
+                        cur = node.get(first);
                         continue 'walk;
                     }
-                    // Measured: prefetching only here, where children are pushed, against
-                    // every hit child and against none: bench-trace torus100k primary
-                    // mode=8 --reps 20, 1 thread, eight interleaved runs, median 23.96
-                    // against 23.19 and 23.81 Mrays/s (2225, 2316 and 2080 instructions
-                    // per packet: the prefetches pay for themselves in stalls, barely)
-                    prefetch_children_x8(w, node, bits | 1 << first);
+                    // prefetched only here, where children are pushed
+                    w.prefetch_children(node, bits | 1 << first, true);
                     // two or more: nearest next, the others pushed farthest first
-                    cur = push_ordered(node, near, first, bits, &mut refs, &mut dists, &mut sp);
+                    cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
                     continue 'walk;
                 }
-            } else if self.leaf_intersect_x8::<OCT>(child, meta, r, act, fr, t_hi, hit, steps) {
+            } else if self.leaf_intersect_x8::<T, OCT>(cur, r, act, fr, t_hi, hit, steps) {
                 t_hi = hmax(hit.t, act).to_array()[0];
             }
             // pop the next subtree some lane may still enter before its nearest hit
             loop {
-                if sp == 0 {
+                let Some(p) = stack.pop() else {
                     break 'walk;
-                }
-                sp -= 1;
-                // SAFETY: entries 0..sp (before the decrement) were written above.
-                let (d, rf) = unsafe { (dists[sp].assume_init(), refs[sp].assume_init()) };
-                if d <= t_hi * FAR_WIDEN {
-                    cur = rf;
+                };
+                if p.near <= t_hi * FAR_WIDEN {
+                    cur = p.to;
                     break;
                 }
             }
@@ -447,10 +373,9 @@ impl Bvh {
     /// A leaf of the wide packet walk; whether any lane's hit changed.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_intersect_x8<const OCT: u32>(
+    fn leaf_intersect_x8<T: TriangleKernel, const OCT: u32>(
         &self,
-        child: u32,
-        meta: u32,
+        leaf: SlotRef,
         r: &RayPacket8,
         act: Mask8,
         fr: &Frustum,
@@ -458,24 +383,23 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) -> bool {
-        let count = meta & COUNT_MASK;
-        let kind = PrimKind::from_u32(meta >> 28);
+        let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
+        let first = leaf.child as usize;
         if kind != PrimKind::Triangle {
-            steps.leaf(kind, count as usize, act.count());
+            steps.leaf(kind, count, act.count());
             self.prims
-                .intersect_x8(kind, child as usize, count as usize, r, act, hit);
+                .intersect_x8::<T>(kind, first, count, r, act, hit);
             return true;
         }
         let mut t_hi = t_hi;
         let mut changed = false;
-        let nb = count.div_ceil(8) as usize;
-        for b in &self.wide.blocks[child as usize..child as usize + nb] {
+        for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 steps.prims += 1;
-                let (m, t, u, v) = intersect_splat_x8(block_vertices(b, j), r, act, hit.t);
+                let (m, t, u, v) = T::intersect_splat_x8(block_vertices(b, j), r, act, hit.t);
                 if m.none() {
                     continue;
                 }
@@ -484,15 +408,8 @@ impl Bvh {
                 if m.none() {
                     continue;
                 }
-                record_x8(
-                    &self.prims,
-                    hit,
-                    m,
-                    t,
-                    u,
-                    v,
-                    prim_code(PrimKind::Triangle, b.first as usize + j),
-                );
+                let code = prim_code(PrimKind::Triangle, b.first as usize + j);
+                self.prims.record_x8(hit, m, t, (u, v), code);
                 t_hi = hmax(hit.t, act).to_array()[0];
                 changed = true;
             }
@@ -503,7 +420,7 @@ impl Bvh {
     /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
     /// `active` (finite, sharing the direction signs `octant`) blocked with 0 < t < t_max;
     /// `None` (nothing done) when they spread wider than `spread`.
-    pub(super) fn occluded_x8_wide(
+    pub(crate) fn occluded_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -521,12 +438,12 @@ impl Bvh {
         Some(with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_occlusion_x8(r, act, &fr, t_max, steps)
+            self.frustum_occlusion_x8::<T>(r, act, &fr, t_max, steps)
         ))
     }
 
     /// The frustum walk of [`Bvh::occluded_x8_wide`] for lanes of direction signs `OCT`.
-    fn frustum_occlusion_x8<const OCT: u32>(
+    fn frustum_occlusion_x8<T: TriangleKernel, const OCT: u32>(
         &self,
         r: &RayPacket8,
         act: Mask8,
@@ -537,50 +454,38 @@ impl Bvh {
         let w = &self.wide;
         let t_hi = hmax(t_max, act).to_array()[0];
         let mut left = act;
-        // uninitialised for the same reason as in `frustum_walk_x8`
-        let mut stack = [MaybeUninit::<u64>::uninit(); WIDE_STACK];
-        stack[0] = MaybeUninit::new(pack(0, INTERIOR));
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            // SAFETY: entries 0..sp (before the decrement) were written.
-            let cur = unsafe { stack[sp].assume_init() };
-            let (child, meta) = (cur as u32, (cur >> 32) as u32);
-            if meta == INTERIOR {
-                let node = &w.nodes[child as usize];
+        let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
+        stack.push(SlotRef::ROOT);
+        while let Some(cur) = stack.pop() {
+            if cur.slot.is_interior() {
+                let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
                 let mut bits = fr.test::<OCT>(&node.bounds, t_hi).0;
-                prefetch_children_x8(w, node, bits);
+                w.prefetch_children(node, bits, true);
                 while bits != 0 {
                     let s = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    stack[sp] = MaybeUninit::new(pack(node.child[s], node.meta[s]));
-                    sp += 1;
+                    stack.push(node.get(s));
                 }
                 continue;
             }
-            let count = meta & COUNT_MASK;
-            let kind = PrimKind::from_u32(meta >> 28);
+            let (kind, count) = (cur.slot.kind(), cur.slot.count() as usize);
+            let first = cur.child as usize;
             if kind != PrimKind::Triangle {
-                steps.leaf(kind, count as usize, left.count());
-                left = left.and_not(self.prims.occluded_x8(
-                    kind,
-                    child as usize,
-                    count as usize,
-                    r,
-                    left,
-                    t_max,
-                ));
+                steps.leaf(kind, count, left.count());
+                left = left.and_not(
+                    self.prims
+                        .occluded_x8::<T>(kind, first, count, r, left, t_max),
+                );
             } else {
-                let nb = count.div_ceil(8) as usize;
-                for b in &self.wide.blocks[child as usize..child as usize + nb] {
+                for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
                     let mut bits = fr.block_candidates::<OCT>(b, t_hi);
                     while bits != 0 && left.any() {
                         let j = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
                         steps.prims += 1;
-                        // as `Triangle32::occluded_x8`
-                        let (m, t, _, _) = intersect_splat_x8(block_vertices(b, j), r, left, t_max);
+                        let (m, t, _, _) =
+                            T::intersect_splat_x8(block_vertices(b, j), r, left, t_max);
                         let m = m & t.lt(t_max);
                         if m.any() {
                             left = left.and_not(block_leaf_box(b, j).intersect_x8(r, m, t_max));

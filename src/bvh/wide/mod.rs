@@ -1,0 +1,214 @@
+//! An 8-wide BVH collapsed from the binary SAH tree.
+//!
+//! - [`collapse`]: the binary node array into nodes of up to eight children, triangle
+//!   leaves into SoA blocks of eight.
+//! - [`walk_1`]: one ray against the eight boxes of a node at once, a leaf's triangles
+//!   eight at a time (every single-ray query, `Bvh::intersect_1`/`occluded_1`).
+//! - [`walk_x8`]: a coherent packet as one frustum, Embree-style.
+//!
+//! The slot boxes are the binary nodes' boxes, bit for bit, so a slot's slab test gives
+//! the same answer the binary traversal gets for that subtree; a merged leaf's
+//! triangles keep their binary leaf's box ([`TriBlock`]), so every walk reports what the
+//! binary walks report.
+//!
+//! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
+//! non-finite origin or direction skips the tree), exact ties as `PrimSet::record_1`,
+//! the unbounded quadrics and the floor after the tree. Step counters: `boxes` counts
+//! wide node tests, `prims` the primitives of the leaves reached (real triangles, not
+//! padding lanes), `quadrics` the quadric tests.
+
+pub mod collapse;
+pub mod walk_1;
+pub mod walk_x8;
+
+use wide::f32x8;
+
+use super::STACK_SIZE;
+use super::memory::prefetch_lines;
+use super::slot::{Slot, SlotRef};
+use crate::geometry::PrimKind;
+use crate::geometry::triangle::Triangle8;
+
+/// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
+pub const MERGE_MAX: u32 = 16;
+
+/// A node of the 8-wide tree. 256 B = four cache lines, 64-byte aligned.
+///
+/// `bounds[2a]` / `bounds[2a + 1]`: the low / high bounds of the eight child boxes on
+/// axis a (x, y, z), lane i = slot i. Empty slots have lo = +∞, hi = −∞: with the near
+/// plane picked by the sign of the direction (never min/max), their entry is +∞ and
+/// their exit −∞, so they never hit. Slots are filled from 0 without gaps.
+/// `slot[i]` interior: `child[i]` is the index of its [`WideNode`]; a leaf:
+/// `child[i]` is its first [`TriBlock`] for triangles, its first primitive of its kind
+/// in the `PrimSet` otherwise.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct WideNode {
+    pub bounds: [f32x8; 6],
+    pub child: [u32; 8],
+    pub slot: [Slot; 8],
+}
+
+const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+impl WideNode {
+    /// Slot `s` and its child.
+    #[inline(always)]
+    pub fn get(&self, s: usize) -> SlotRef {
+        SlotRef {
+            child: self.child[s],
+            slot: self.slot[s],
+        }
+    }
+
+    /// A node of eight empty slots.
+    pub fn empty() -> WideNode {
+        let lo = f32x8::splat(f32::INFINITY);
+        let hi = f32x8::splat(f32::NEG_INFINITY);
+        WideNode {
+            bounds: [lo, hi, lo, hi, lo, hi],
+            child: [0; 8],
+            slot: [Slot::INTERIOR; 8],
+        }
+    }
+}
+
+/// Up to eight triangles of one leaf, SoA, with the index of the first in
+/// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
+/// that never hits), and per lane the box of the binary leaf the triangle came from
+/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines.
+///
+/// A lane's hit counts only when the ray also passes its binary leaf's box: then a
+/// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
+/// monotone under box containment, so passing the leaf's box implies passing every
+/// ancestor's), even for a ray lying in a box face with a ±0 direction component. A
+/// block of one binary leaf (`one_leaf`) has the slot's own box in every lane, already
+/// passed.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct TriBlock {
+    pub tri: Triangle8,
+    pub bounds: [f32x8; 6],
+    pub first: u32,
+    pub count: u32,
+    /// All lanes come from one binary leaf, whose box is the slot's: the walks skip
+    /// the lane boxes.
+    pub one_leaf: bool,
+}
+
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
+
+/// The 8-wide tree over the same primitives as the binary one (it owns copies of the
+/// triangles in blocks; the primitive codes it reports index `PrimSet`).
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    pub blocks: Vec<TriBlock>,
+    /// Length of the diagonal of the root box (0 when empty): the packet walk's origin
+    /// spread limit scales with it (`walk_x8::Frustum::new`).
+    pub diagonal: f32,
+}
+
+/// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
+/// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
+pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
+
+impl WideBvh {
+    /// Asks for a child's node or first triangle block (`whole`: with its leaf boxes)
+    /// to be brought into the cache: the slab test reads the box lines, then the child
+    /// or triangle lines, each a miss of its own on incoherent rays without this.
+    #[inline(always)]
+    pub(super) fn prefetch(&self, r: SlotRef, whole: bool) {
+        if r.slot.is_interior() {
+            if let Some(n) = self.nodes.get(r.child as usize) {
+                prefetch_lines(n);
+            }
+        } else if r.slot.holds(PrimKind::Triangle)
+            && let Some(b) = self.blocks.get(r.child as usize)
+        {
+            if whole {
+                prefetch_lines(b);
+            } else {
+                prefetch_lines(&b.tri);
+            }
+        }
+    }
+
+    /// [`WideBvh::prefetch`] of the children `bits` of `node`.
+    #[inline(always)]
+    pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, whole: bool) {
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            self.prefetch(node.get(s), whole);
+        }
+    }
+
+    /// Depth of the deepest leaf slot (root node = 1); 0 when empty.
+    pub fn depth(&self) -> usize {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let mut best = 0;
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((i, d)) = stack.pop() {
+            best = best.max(d);
+            let n = &self.nodes[i];
+            for s in 0..8 {
+                let valid = n.bounds[0].to_array()[s] <= n.bounds[1].to_array()[s];
+                if valid && n.slot[s].is_interior() {
+                    stack.push((n.child[s] as usize, d + 1));
+                }
+            }
+        }
+        best
+    }
+
+    /// Of a node's hit children (`first`, then the slots in `bits`), pushes all but the
+    /// nearest by entry distance `near` onto `stack`, farthest first (keys: the
+    /// distance's bits, >= 0 so ordered as integers, then the slot; insertion sort, at
+    /// most 8), and returns the nearest, to visit next. Shared by the single-ray and the
+    /// frustum packet walks.
+    #[inline(always)]
+    pub(super) fn push_ordered(
+        node: &WideNode,
+        near: f32x8,
+        first: usize,
+        mut bits: u32,
+        stack: &mut super::slot::Stack<Pending, WIDE_STACK>,
+    ) -> SlotRef {
+        let nd = near.to_array();
+        let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+        let mut keys = [0u64; 8];
+        keys[0] = key(first);
+        let mut n = 1;
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            // insertion, descending
+            let k = key(s);
+            let mut j = n;
+            while j > 0 && keys[j - 1] < k {
+                keys[j] = keys[j - 1];
+                j -= 1;
+            }
+            keys[j] = k;
+            n += 1;
+        }
+        for &k in &keys[..n - 1] {
+            stack.push(Pending {
+                to: node.get((k & 0xff) as usize),
+                near: f32::from_bits((k >> 32) as u32),
+            });
+        }
+        node.get((keys[n - 1] & 0xff) as usize)
+    }
+}
+
+/// A child left on the stack of an ordered walk, with the entry distance it was met at
+/// (skipped when popped behind the nearest hit).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Pending {
+    pub to: SlotRef,
+    pub near: f32,
+}

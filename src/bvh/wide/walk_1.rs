@@ -1,0 +1,267 @@
+//! One ray through the 8-wide tree: the eight child boxes of a node in one slab test,
+//! the hit children visited nearest first (closest hit), a leaf's triangles eight at a
+//! time with the 1×8 kernel of the frame's triangle test (equal lane by lane to its
+//! single-ray kernel). Spheres and clipped quadrics in leaves go through
+//! `PrimSet::intersect_1`/`occluded_1` one by one.
+
+use wide::f32x8;
+
+use super::{Pending, WIDE_STACK, WideBvh, WideNode};
+use crate::bvh::slot::{SlotRef, Stack};
+use crate::bvh::{Bvh, Steps};
+use crate::geometry::triangle::TriangleKernel;
+use crate::geometry::{Hit1, PrimKind, prim_code};
+use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1};
+
+/// One ray prepared for the wide walk: the ray, its slab-test and its triangle-test forms.
+struct WideRay<'a, T: TriangleKernel> {
+    r: &'a Ray1,
+    boxes: BoxRay,
+    tris: T::Ray1x8,
+}
+
+impl<T: TriangleKernel> WideRay<'_, T> {
+    #[inline]
+    fn new(r: &Ray1) -> WideRay<'_, T> {
+        WideRay {
+            r,
+            boxes: BoxRay::new(r),
+            tris: T::prepare(r),
+        }
+    }
+}
+
+/// One ray prepared for the slab tests of a [`WideNode`].
+struct BoxRay {
+    origin: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    /// Index in `WideNode::bounds` of the near and far plane per axis (by the sign of
+    /// 1/d: lo when positive).
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl BoxRay {
+    #[inline]
+    fn new(r: &Ray1) -> BoxRay {
+        let neg = [0, 1, 2].map(|a| (r.inv_dir[a] < 0.0) as usize);
+        BoxRay {
+            origin: [0, 1, 2].map(|a| f32x8::splat(r.origin[a])),
+            inv_dir: [0, 1, 2].map(|a| f32x8::splat(r.inv_dir[a])),
+            near: [0, 1, 2].map(|a| 2 * a + neg[a]),
+            far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
+        }
+    }
+
+    /// The slab test of `BvhNode::intersect_1` on the eight slots: bit i of the mask is
+    /// set when slot i is met with 0 <= t and t <= t_max (far bound widened by
+    /// 1 + 2γ(3)); the entry distances. With finite origins and 1/d (the slab rule)
+    /// nothing here is NaN, so `fast_min`/`fast_max` are exact min/max, and picking the
+    /// near plane by the sign of 1/d gives the same value as the binary test's min.
+    #[inline]
+    fn test(&self, bounds: &[f32x8; 6], t_max: f32) -> (Mask8, f32x8) {
+        let t = |plane: usize, a: usize| (bounds[plane] - self.origin[a]) * self.inv_dir[a];
+        let near = t(self.near[0], 0)
+            .fast_max(t(self.near[1], 1))
+            .fast_max(t(self.near[2], 2).fast_max(f32x8::ZERO));
+        let far = t(self.far[0], 0)
+            .fast_min(t(self.far[1], 1))
+            .fast_min(t(self.far[2], 2).fast_min(f32x8::splat(t_max)))
+            * f32x8::splat(FAR_WIDEN);
+        (near.le(far), near)
+    }
+}
+
+/// Whether the ray enters the tree: a NaN or infinite origin or direction never hits
+/// a bounded primitive (their kernels give NaN), and would make the slab test NaN,
+/// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included.
+#[inline]
+fn finite(r: &Ray1) -> bool {
+    r.origin.is_finite() && r.inv_dir.is_finite()
+}
+
+impl Bvh {
+    /// Nearest hit below `hit.t`, recorded in `hit` (the 8-wide tree, then the
+    /// unbounded quadrics and the floor).
+    pub fn intersect_1<T: TriangleKernel>(&self, r: &Ray1, hit: &mut Hit1, steps: &mut Steps) {
+        self.intersect_wide_1::<T>(r, hit, steps);
+        self.intersect_beside_1::<T>(r, hit, steps);
+    }
+
+    /// The tree part of [`Bvh::intersect_1`].
+    #[inline]
+    pub(crate) fn intersect_wide_1<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
+        if !self.wide.nodes.is_empty() && finite(r) {
+            let wr = WideRay::<T>::new(r);
+            with_const!(wr.r.kz, [0, 1, 2], self.walk_1::<T>(&wr, hit, steps))
+        }
+    }
+
+    /// The tree part of [`Bvh::intersect_1`] for a ray whose largest direction
+    /// component is axis `KZ` (the triangle kernel's permutation, fixed here once per
+    /// ray instead of per block).
+    #[inline(always)]
+    fn walk_1<T: TriangleKernel, const KZ: usize>(
+        &self,
+        wr: &WideRay<T>,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
+        let w = &self.wide;
+        let mut stack = Stack::<Pending, WIDE_STACK>::new();
+        let mut cur = SlotRef::ROOT;
+        'walk: loop {
+            if cur.slot.is_interior() {
+                let node = &w.nodes[cur.child as usize];
+                steps.boxes += 1;
+                let (m, near) = wr.boxes.test(&node.bounds, hit.t);
+                let mut bits = m.bits();
+                w.prefetch_children(node, bits, false);
+                if bits != 0 {
+                    let first = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    cur = if bits == 0 {
+                        node.get(first)
+                    } else {
+                        // two or more: nearest next, the others pushed farthest first
+                        WideBvh::push_ordered(node, near, first, bits, &mut stack)
+                    };
+                    continue 'walk;
+                }
+            } else {
+                self.leaf_intersect_1::<T, KZ>(cur, wr, hit, steps);
+            }
+            // pop the next subtree still in front of the nearest hit
+            loop {
+                let Some(p) = stack.pop() else {
+                    break 'walk;
+                };
+                if p.near <= hit.t {
+                    cur = p.to;
+                    break;
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn leaf_intersect_1<T: TriangleKernel, const KZ: usize>(
+        &self,
+        leaf: SlotRef,
+        wr: &WideRay<T>,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) {
+        let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
+        steps.leaf(kind, count, 1);
+        if kind != PrimKind::Triangle {
+            let first = leaf.child as usize;
+            self.prims.intersect_1::<T>(kind, first, count, wr.r, hit);
+            return;
+        }
+        let first = leaf.child as usize;
+        for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
+            // the leaf boxes only for lanes that hit: three lines fewer to fetch per block
+            let (m, t, u, v) = T::intersect_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, hit.t);
+            if m.none() {
+                continue;
+            }
+            // a block of one binary leaf: every lane's box is the slot's, which the ray
+            // has passed (with a t_max >= hit.t, and a hit lies in front of hit.t)
+            let mut bits = if b.one_leaf {
+                m.bits()
+            } else {
+                (m & wr.boxes.test(&b.bounds, hit.t).0).bits()
+            };
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let code = prim_code(PrimKind::Triangle, b.first as usize + l);
+                self.prims.record_1(hit, t[l], u[l], v[l], code);
+            }
+        }
+    }
+
+    /// Whether anything lies on the ray with 0 < t < t_max (the floor, the unbounded
+    /// quadrics, then the 8-wide tree, unordered; stops at the first blocker).
+    pub fn occluded_1<T: TriangleKernel>(&self, r: &Ray1, t_max: f32, steps: &mut Steps) -> bool {
+        self.occluded_beside_1::<T>(r, t_max, steps) || self.occluded_wide_1::<T>(r, t_max, steps)
+    }
+
+    /// The tree part of [`Bvh::occluded_1`].
+    #[inline]
+    pub(crate) fn occluded_wide_1<T: TriangleKernel>(
+        &self,
+        r: &Ray1,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        if self.wide.nodes.is_empty() || !finite(r) {
+            return false;
+        }
+        let wr = WideRay::<T>::new(r);
+        with_const!(
+            wr.r.kz,
+            [0, 1, 2],
+            self.occluded_walk_1::<T>(&wr, t_max, steps)
+        )
+    }
+
+    /// The tree part of [`Bvh::occluded_1`], the permutation fixed as in `walk_1`.
+    #[inline(always)]
+    fn occluded_walk_1<T: TriangleKernel, const KZ: usize>(
+        &self,
+        wr: &WideRay<T>,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        let w = &self.wide;
+        let mut stack = Stack::<u32, WIDE_STACK>::new();
+        stack.push(0);
+        while let Some(ni) = stack.pop() {
+            let node: &WideNode = &w.nodes[ni as usize];
+            steps.boxes += 1;
+            let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
+            w.prefetch_children(node, bits, false);
+            while bits != 0 {
+                let s = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let child = node.get(s);
+                if child.slot.is_interior() {
+                    stack.push(child.child);
+                } else if self.leaf_occluded_1::<T, KZ>(child, wr, t_max, steps) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    #[inline]
+    fn leaf_occluded_1<T: TriangleKernel, const KZ: usize>(
+        &self,
+        leaf: SlotRef,
+        wr: &WideRay<T>,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> bool {
+        let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
+        steps.leaf(kind, count, 1);
+        let first = leaf.child as usize;
+        if kind != PrimKind::Triangle {
+            return self.prims.occluded_1::<T>(kind, first, count, wr.r, t_max);
+        }
+        self.wide.blocks[first..first + count.div_ceil(8)]
+            .iter()
+            .any(|b| {
+                let m = T::occluded_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, t_max);
+                m.any() && (b.one_leaf || (m & wr.boxes.test(&b.bounds, t_max).0).any())
+            })
+    }
+}
