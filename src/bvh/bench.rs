@@ -565,9 +565,12 @@ pub fn run(
         let load_ms = start.elapsed().as_secs_f64() * 1e3;
         let (vertices, faces) = (obj.vertices.len(), obj.triangles.len());
         let (tris, dropped) = mesh_triangles(obj);
+        // the process's peak memory so far, for the log
+        let peak = || peak_rss_mb().map_or_else(String::new, |mb| format!(", peak_rss_MB={mb:.1}"));
         let _ = writeln!(
             log,
-            "octaray mesh: {name}: load_ms={load_ms:.1} (read and parse the OBJ file), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate"
+            "octaray mesh: {name}: load_ms={load_ms:.1} (read and parse the OBJ file), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate{}",
+            peak()
         );
         let Built {
             bvh,
@@ -598,12 +601,13 @@ pub fn run(
         let per = |b: usize| b as f64 / ntris.max(1) as f64;
         let _ = writeln!(
             log,
-            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, triangles in leaf order {:.1}",
+            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, triangles in leaf order {:.1}{}",
             per(bytes.total()),
             per(bytes.binary_nodes),
             per(bytes.wide_nodes),
             per(bytes.wide_blocks),
-            per(bytes.prims)
+            per(bytes.prims),
+            peak()
         );
         let mut runs = Vec::new();
         // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional; rays may be a
