@@ -10,7 +10,7 @@ peer=${2:-/tmp/embree-peer}
 here=$(cd "$(dirname "$0")" && pwd)
 cargo build --release -q
 o=$PWD/target/release/octaray
-ONLY_SHADOW=1 "$here/embree/run.sh" "$peer" >/dev/null  # installs, generates, builds
+SETUP_ONLY=1 "$here/embree/run.sh" "$peer"  # installs, generates, builds
 e=$peer/bench_e3_anyhit
 log=$(mktemp)
 uptime

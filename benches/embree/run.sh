@@ -2,7 +2,8 @@
 # Peer baseline: Intel Embree 3 (Debian's libembree-dev) on the standard meshes and ray sets of the trace benchmark
 # (closest hit, then the shadow rays of each set: any hit). octaray's `bench-trace` traces the same work.
 # usage: benches/embree/run.sh [OUTDIR]   (default /tmp/embree-peer); prints one line per configuration.
-# THREADS=2 for two threads; ONLY_SHADOW=1 for the shadow (any-hit) lines only.
+# THREADS=2 for two threads; ONLY_SHADOW=1 for the shadow (any-hit) lines only; SETUP_ONLY=1 to install, generate
+# and build without running.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 out=${1:-/tmp/embree-peer}
@@ -17,6 +18,7 @@ fi
 # rebuilt when the source is newer (another copy of the harness may have built here)
 bin="$out/bench_e3_anyhit"
 [ "$bin" -nt "$here/embree_bench.cpp" ] || g++ -O2 -march=native -std=c++17 -DE3 "$here/embree_bench.cpp" -o "$bin" -lembree3 -lpthread
+[ -z "${SETUP_ONLY:-}" ] || exit 0
 cd "$out"
 for mesh in torus100k torus1m; do
   for rays in primary incoherent; do
