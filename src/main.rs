@@ -46,7 +46,9 @@ struct Cli {
 enum Command {
     /// Render a scene file to BMP or PNG.
     Render(RenderArgs),
-    /// Trace benchmark of ../shared/peers/PROTOCOL.md on an OBJ mesh (packet and single-ray paths).
+    /// Trace benchmark on an OBJ mesh: load, BVH build, closest-hit and shadow (any-hit)
+    /// rays on the packet and single-ray paths, the work the Embree comparison of
+    /// benches/embree/ measures.
     BenchTrace(BenchTraceArgs),
     /// Fly through a scene in a window, ray traced live (keys in the title bar).
     View(ViewArgs),
@@ -174,7 +176,9 @@ struct RenderArgs {
 
 #[derive(Args, Debug)]
 struct BenchTraceArgs {
-    /// OBJ mesh, e.g. torus100k.obj written by ../shared/peers/embree/gen_data.py.
+    /// OBJ mesh: the standard tori torus100k.obj and torus1m.obj are written by
+    /// benches/embree/gen_data.py (benches/embree/run.sh writes them to
+    /// /tmp/embree-peer/data).
     mesh: PathBuf,
     /// Worker threads.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]

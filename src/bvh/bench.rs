@@ -1,11 +1,14 @@
-//! The standard trace work of `../shared/peers/PROTOCOL.md`, for `octaray bench-trace`
-//! and the criterion benches: a triangle mesh from an OBJ file, 1024² coherent primary
-//! rays in 4 × 2 pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞),
-//! build best of 3 and trace best of 5, reported in the Embree harness's fields for
-//! the packet path (mode=8: the 8-wide tree collapsed from the same BVH, as a frustum
-//! for packets whose lanes share their direction signs, lane by lane for the others),
-//! the binary packet path (mode=8b), the
-//! single-ray path (mode=1, the 8-wide tree) and the binary single-ray path (mode=1b).
+//! The standard trace work of the Embree comparison (`benches/embree/`, whose
+//! `gen_data.py` writes the meshes), for `octaray bench-trace` and the criterion
+//! benches: a triangle mesh from an OBJ file, 1024² coherent primary rays in 4 × 2
+//! pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞), then the
+//! shadow rays of each set (any hit, [`shadow_rays`]); build best of 3 and trace best
+//! of 5, reported in the Embree harness's fields for the packet path (mode=8: the
+//! 8-wide tree collapsed from the same BVH, as a frustum for packets whose lanes share
+//! their direction signs, lane by lane for the others), the binary packet path
+//! (mode=8b), the single-ray path (mode=1, the 8-wide tree) and the binary single-ray
+//! path (mode=1b); each line also gives the bytes per triangle of the trees and
+//! triangle arrays, and the process's peak memory so far.
 
 use std::path::Path;
 use std::time::Instant;
@@ -19,8 +22,9 @@ use super::{Bvh, Steps};
 use crate::geometry::triangle::Triangle32;
 use crate::geometry::triangle::Watertight;
 use crate::geometry::{Hit1, PrimSet};
-use crate::math::packet::{HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
-use crate::scene::obj::{ObjError, load_obj};
+use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
+use crate::scene::obj::{Mesh, ObjError, load_obj};
+use crate::scene::{Material, Object, Scene, Shape};
 
 /// A ray set: origins and unit directions, in packet order (every 8 consecutive rays
 /// form one packet).
@@ -31,13 +35,36 @@ pub struct RaySet {
     pub dir: Vec<Vec3>,
 }
 
-/// The triangles of an OBJ mesh in f32 (the standard meshes are written with exact
-/// float32 values, so nothing is rounded).
+/// The triangles of an OBJ mesh in f32 as the renderer takes them (the standard
+/// meshes are written with exact float32 values, so nothing is rounded); zero-area
+/// triangles are dropped, by the renderer's rule ([`mesh_triangles`]).
 pub fn load_mesh(path: &Path) -> Result<Vec<Triangle32>, ObjError> {
-    let mesh = load_obj(path)?;
-    Ok((0..mesh.triangles.len())
-        .map(|k| Triangle32::new(&mesh.triangle(k), DVec3::ZERO))
-        .collect())
+    Ok(mesh_triangles(load_obj(path)?).0)
+}
+
+/// The triangles of `mesh` in the renderer's f32 frame at the origin, through the
+/// renderer's own path ([`PrimSet::from_scene`] on a scene of this one mesh): the
+/// triangles it drops as degenerate are dropped here too; and how many it dropped.
+pub fn mesh_triangles(mesh: Mesh) -> (Vec<Triangle32>, usize) {
+    let scene = Scene {
+        recursion_level: 1,
+        pixels: 1,
+        objects: vec![Object {
+            shape: Shape::Mesh(std::sync::Arc::new(mesh)),
+            material: Material {
+                color: DVec3::ONE,
+                ka: 0.0,
+                kd: 1.0,
+                ks: 0.0,
+                kr: 0.0,
+                shine: 1.0,
+            },
+        }],
+        point_lights: Vec::new(),
+        spot_lights: Vec::new(),
+    };
+    let prims = PrimSet::from_scene(&scene, DVec3::ZERO);
+    (prims.triangles, prims.dropped)
 }
 
 /// 1024 × 1024 pinhole camera at (0, 2.2, 2.6) looking at the origin, up +y, vertical
@@ -139,49 +166,80 @@ impl Mode {
     }
 }
 
+/// Rays per work item of the parallel traces.
+const CHUNK: usize = 1024;
+
+fn add_steps(a: Steps, b: Steps) -> Steps {
+    Steps {
+        boxes: a.boxes + b.boxes,
+        prims: a.prims + b.prims,
+        quadrics: a.quadrics + b.quadrics,
+    }
+}
+
+/// Runs `chunk` on every `CHUNK` items of `out` (with the chunk's index) and sums the
+/// steps; on the calling thread where worker threads cannot start.
+fn chunks<T: Send>(
+    out: &mut [T],
+    chunk: impl Fn((usize, &mut [T])) -> Steps + Sync + Send,
+) -> Steps {
+    if crate::parallel::parallel() {
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(chunk)
+            .reduce(Steps::default, add_steps)
+    } else {
+        out.chunks_mut(CHUNK)
+            .enumerate()
+            .map(chunk)
+            .fold(Steps::default(), add_steps)
+    }
+}
+
+/// The packet of rays `b..b + n` of `origin`/`dir` (n <= 8; a short packet padded
+/// with copies of its first ray), with `active` lanes.
+#[inline]
+fn packet(origin: &[Vec3], dir: &[Vec3], b: usize, n: usize, active: Mask8) -> RayPacket8 {
+    // a whole packet straight from the ray arrays; a short last one padded (a
+    // `copy_from_slice` of run-time length is a memmove call: 3.4 % of a perf profile
+    // of bench-trace primary mode=8)
+    if let (Ok(o), Ok(d)) = (
+        <&[Vec3; 8]>::try_from(&origin[b..b + n]),
+        <&[Vec3; 8]>::try_from(&dir[b..b + n]),
+    ) {
+        RayPacket8::new(Vec3x8::from_lanes(o), Vec3x8::from_lanes(d), active)
+    } else {
+        let mut o = [origin[b]; 8];
+        let mut d = [dir[b]; 8];
+        o[..n].copy_from_slice(&origin[b..b + n]);
+        d[..n].copy_from_slice(&dir[b..b + n]);
+        RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active)
+    }
+}
+
 /// Traces every ray of `rays`, writing the hit distance (−1 for a miss) per ray.
 pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
-    const CHUNK: usize = 1024;
-    let chunk = |(c, out): (usize, &mut [f32])| {
+    chunks(t_out, |(c, out): (usize, &mut [f32])| {
         let mut steps = Steps::default();
         let base = c * CHUNK;
         match mode {
-            Mode::Single => {
+            Mode::Single | Mode::SingleBinary => {
                 for (i, t) in out.iter_mut().enumerate() {
                     let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
                     let mut h = Hit1::new(f32::INFINITY);
-                    bvh.intersect_1::<Watertight>(&r, &mut h, &mut steps);
-                    *t = if h.is_hit() { h.t } else { -1.0 };
-                }
-            }
-            Mode::SingleBinary => {
-                for (i, t) in out.iter_mut().enumerate() {
-                    let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
-                    let mut h = Hit1::new(f32::INFINITY);
-                    bvh.intersect_1_binary::<Watertight>(&r, &mut h, &mut steps);
+                    if mode == Mode::Single {
+                        bvh.intersect_1::<Watertight>(&r, &mut h, &mut steps);
+                    } else {
+                        bvh.intersect_1_binary::<Watertight>(&r, &mut h, &mut steps);
+                    }
                     *t = if h.is_hit() { h.t } else { -1.0 };
                 }
             }
             Mode::Packet8 | Mode::Packet8Binary => {
                 for (k, ts) in out.chunks_mut(8).enumerate() {
-                    let b = base + k * 8;
                     let n = ts.len();
                     let active = Mask8::from_bits((1u32 << n) - 1);
-                    // a whole packet straight from the ray arrays; a short last one
-                    // padded (a `copy_from_slice` of run-time length is a memmove
-                    // call: 3.4 % of a perf profile of bench-trace primary mode=8)
-                    let p = if let (Ok(o), Ok(d)) = (
-                        <&[Vec3; 8]>::try_from(&rays.origin[b..b + n]),
-                        <&[Vec3; 8]>::try_from(&rays.dir[b..b + n]),
-                    ) {
-                        RayPacket8::new(Vec3x8::from_lanes(o), Vec3x8::from_lanes(d), active)
-                    } else {
-                        let mut o = [rays.origin[b]; 8];
-                        let mut d = [rays.dir[b]; 8];
-                        o[..n].copy_from_slice(&rays.origin[b..b + n]);
-                        d[..n].copy_from_slice(&rays.dir[b..b + n]);
-                        RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active)
-                    };
+                    let p = packet(&rays.origin, &rays.dir, base + k * 8, n, active);
                     let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
                     if mode == Mode::Packet8 {
                         bvh.intersect_x8::<Watertight>(&p, active, &mut h, &mut steps);
@@ -199,51 +257,132 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
             }
         }
         steps
-    };
-    let add = |a: Steps, b: Steps| Steps {
-        boxes: a.boxes + b.boxes,
-        prims: a.prims + b.prims,
-        quadrics: a.quadrics + b.quadrics,
-    };
-    // (on the calling thread where worker threads cannot start)
-    if crate::parallel::parallel() {
-        t_out
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(chunk)
-            .reduce(Steps::default, add)
-    } else {
-        t_out
-            .chunks_mut(CHUNK)
-            .enumerate()
-            .map(chunk)
-            .fold(Steps::default(), add)
-    }
+    })
 }
 
-/// One line of results, in the Embree harness's fields.
+/// The light of the shadow rays: beside the torus, a little above it (about half of
+/// the primary rays' hit points are in its shadow).
+pub const SHADOW_LIGHT: Vec3 = Vec3::new(3.0, 1.0, -2.0);
+
+/// Shadow rays: ray i runs from the closest hit of ray i of a ray set toward
+/// [`SHADOW_LIGHT`], unit direction, blocked by anything with 0 < t < `t_max[i]`;
+/// `t_max[i]` <= 0 where ray i missed (no shadow ray: an inactive packet lane).
+#[derive(Clone, Debug)]
+pub struct ShadowRays {
+    pub rays: RaySet,
+    pub t_max: Vec<f32>,
+}
+
+/// The shadow rays of `rays`, from their closest hits `t` (−1 for a miss, as
+/// [`trace`] writes them): the origin is the hit point pulled back toward the ray's
+/// origin by 0.1 % of the hit distance (off the surface, on the side the ray came
+/// from), p = o + 0.999·t·d, the direction (L − p)/|L − p| and t_max = |L − p|, all in
+/// f64 from the f32 ray and t, then rounded to f32 (`benches/embree/embree_bench.cpp`
+/// makes the same set from Embree's hits). Takes the ray set and `t` as its storage.
+pub fn shadow_rays(mut rays: RaySet, mut t: Vec<f32>) -> ShadowRays {
+    let light = SHADOW_LIGHT.as_dvec3();
+    for ((o, d), t) in rays.origin.iter_mut().zip(&mut rays.dir).zip(&mut t) {
+        if *t < 0.0 {
+            *t = 0.0;
+            continue;
+        }
+        let p = o.as_dvec3() + d.as_dvec3() * (0.999 * *t as f64);
+        let to = light - p;
+        let len = to.length();
+        (*o, *d, *t) = (p.as_vec3(), (to / len).as_vec3(), len as f32);
+    }
+    rays.name = match rays.name {
+        "primary" => "primary.shadow",
+        "incoherent" => "incoherent.shadow",
+        _ => "shadow",
+    };
+    ShadowRays { rays, t_max: t }
+}
+
+/// Traces every shadow ray of `set` (any hit), writing 1 where it is blocked, 0 where
+/// not or where there is no shadow ray.
+pub fn trace_occluded(bvh: &Bvh, set: &ShadowRays, mode: Mode, out: &mut [u8]) -> Steps {
+    let rays = &set.rays;
+    chunks(out, |(c, out): (usize, &mut [u8])| {
+        let mut steps = Steps::default();
+        let base = c * CHUNK;
+        match mode {
+            Mode::Single | Mode::SingleBinary => {
+                for (i, blocked) in out.iter_mut().enumerate() {
+                    let t_max = set.t_max[base + i];
+                    *blocked = 0;
+                    if t_max <= 0.0 {
+                        continue;
+                    }
+                    let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
+                    *blocked = if mode == Mode::Single {
+                        bvh.occluded_1::<Watertight>(&r, t_max, &mut steps)
+                    } else {
+                        bvh.occluded_1_binary::<Watertight>(&r, t_max, &mut steps)
+                    } as u8;
+                }
+            }
+            Mode::Packet8 | Mode::Packet8Binary => {
+                for (k, bs) in out.chunks_mut(8).enumerate() {
+                    let b = base + k * 8;
+                    let n = bs.len();
+                    let mut tm = [0.0f32; 8];
+                    tm[..n].copy_from_slice(&set.t_max[b..b + n]);
+                    let t_max = f32x8::from(tm);
+                    let active = t_max.gt(f32x8::ZERO);
+                    bs.fill(0);
+                    if active.none() {
+                        continue;
+                    }
+                    let p = packet(&rays.origin, &rays.dir, b, n, active);
+                    let blocked = if mode == Mode::Packet8 {
+                        bvh.occluded_x8::<Watertight>(&p, active, t_max, &mut steps)
+                    } else {
+                        bvh.occluded_x8_binary::<Watertight>(&p, active, t_max, &mut steps)
+                    };
+                    for (l, x) in bs.iter_mut().enumerate() {
+                        *x = (blocked.bits() >> l & 1) as u8;
+                    }
+                }
+            }
+        }
+        steps
+    })
+}
+
+/// One line of results, in the Embree harness's fields (and two of its own).
 #[derive(Clone, Debug)]
 pub struct TraceRun {
     pub mesh: String,
+    /// The ray set: `primary`, `incoherent`, or their shadow rays `primary.shadow`,
+    /// `incoherent.shadow` (any hit).
     pub rays: &'static str,
     pub threads: usize,
     pub mode: Mode,
     pub tris: usize,
     pub build_ms: f64,
     pub trace_ms: f64,
+    /// Rays traced per second (shadow sets: the shadow rays, one per hit of the set).
     pub mrays_per_s: f64,
+    /// The fraction of rays that hit (shadow sets: of shadow rays blocked).
     pub hits: f64,
+    /// The mean t of the hits (shadow sets: the mean t_max of the shadow rays, the
+    /// distance to the light, which checks that both sides traced the same set).
     pub mean_t: f64,
     /// Box and primitive tests per ray in the last trace.
     pub boxes_per_ray: f64,
     pub prims_per_ray: f64,
+    /// Bytes per triangle of the trees and triangle arrays ([`AccelBytes`]).
+    pub bytes_per_tri: f64,
+    /// The process's peak resident memory so far (MB), where the system tells it.
+    pub peak_rss_mb: Option<f64>,
 }
 
 impl std::fmt::Display for TraceRun {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "octaray mesh={} rays={} threads={} mode={} tris={} build_ms={:.1} trace_ms={:.1} Mrays/s={:.2} hits={:.4} mean_t={:.6}",
+            "octaray mesh={} rays={} threads={} mode={} tris={} build_ms={:.1} trace_ms={:.1} Mrays/s={:.2} hits={:.4} mean_t={:.6} bytes/tri={:.1}",
             self.mesh,
             self.rays,
             self.threads,
@@ -253,33 +392,120 @@ impl std::fmt::Display for TraceRun {
             self.trace_ms,
             self.mrays_per_s,
             self.hits,
-            self.mean_t
-        )
+            self.mean_t,
+            self.bytes_per_tri
+        )?;
+        if let Some(mb) = self.peak_rss_mb {
+            write!(f, " peak_rss_MB={mb:.1}")?;
+        }
+        Ok(())
     }
 }
 
-/// Builds the BVH best of 3 (returns it and the best time in ms).
-pub fn timed_build(tris: &[Triangle32]) -> (Bvh, f64) {
-    let mut best = f64::INFINITY;
+/// The process's peak resident set size in MB (`VmHWM` of `/proc/self/status`);
+/// `None` where there is no such file.
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// The bytes a built [`Bvh`] keeps for tracing, by part.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AccelBytes {
+    /// The binary tree's nodes.
+    pub binary_nodes: usize,
+    /// The 8-wide tree's nodes.
+    pub wide_nodes: usize,
+    /// The 8-wide tree's triangle blocks (copies of the triangles, SoA, with the
+    /// binary leaves' boxes per lane).
+    pub wide_blocks: usize,
+    /// The primitive arrays in leaf order (triangles and their object indices).
+    pub prims: usize,
+}
+
+impl AccelBytes {
+    pub fn of(bvh: &Bvh) -> AccelBytes {
+        use std::mem::size_of_val;
+        let p = &bvh.prims;
+        AccelBytes {
+            binary_nodes: size_of_val(&bvh.nodes[..]),
+            wide_nodes: size_of_val(&bvh.wide.nodes[..]),
+            wide_blocks: size_of_val(&bvh.wide.blocks[..]),
+            prims: size_of_val(&p.triangles[..])
+                + size_of_val(&p.triangle_obj[..])
+                + size_of_val(&p.spheres[..])
+                + size_of_val(&p.sphere_obj[..])
+                + size_of_val(&p.quadrics[..])
+                + size_of_val(&p.quadric_obj[..]),
+        }
+    }
+
+    pub fn total(&self) -> usize {
+        self.binary_nodes + self.wide_nodes + self.wide_blocks + self.prims
+    }
+}
+
+/// A BVH built best of 3: the tree, the best time of the whole build and of its
+/// collapse to the 8-wide tree (ms).
+pub struct Built {
+    pub bvh: Bvh,
+    pub build_ms: f64,
+    pub collapse_ms: f64,
+}
+
+/// Builds the BVH over `tris` best of 3 (as [`Bvh::build`], timed in its two parts:
+/// the binary tree, then its collapse). Each build drops the tree before it first, and
+/// the last one takes `tris` itself: no copy of the mesh or second tree stays beside
+/// the one returned (either was a third of bench-trace's peak memory on torus1m).
+pub fn timed_build(mut tris: Vec<Triangle32>) -> Built {
+    let (mut build_ms, mut collapse_ms) = (f64::INFINITY, f64::INFINITY);
     let mut bvh = None;
-    for _ in 0..3 {
-        let prims = PrimSet::from_triangles(tris.to_vec());
+    for k in 0..3 {
+        // the previous tree goes before this one is built
+        drop(bvh.take());
+        let input = if k < 2 {
+            tris.clone()
+        } else {
+            std::mem::take(&mut tris)
+        };
+        let mut prims = PrimSet::from_triangles(input);
         let start = Instant::now();
-        let b = Bvh::build(prims);
-        best = best.min(start.elapsed().as_secs_f64() * 1e3);
-        bvh = Some(b);
+        let nodes = super::build::build(&mut prims);
+        let built = Instant::now();
+        let wide = WideBvh::collapse(&nodes, &prims);
+        let end = Instant::now();
+        build_ms = build_ms.min((end - start).as_secs_f64() * 1e3);
+        collapse_ms = collapse_ms.min((end - built).as_secs_f64() * 1e3);
+        bvh = Some(Bvh { nodes, prims, wide });
     }
-    (bvh.expect("three builds"), best)
+    let bvh = bvh.expect("three builds");
+    #[cfg(debug_assertions)]
+    if let Err(e) = bvh.validate() {
+        panic!("BVH invariant broken: {e}");
+    }
+    Built {
+        bvh,
+        build_ms,
+        collapse_ms,
+    }
 }
 
-/// Traces `rays` best of `reps` and summarises the run.
-pub fn timed_trace(bvh: &Bvh, rays: &RaySet, mode: Mode, reps: usize) -> (f64, f64, f64, Steps) {
-    let mut t = vec![0.0f32; rays.origin.len()];
+/// Traces `rays` best of `reps` and summarises the run: time (ms), fraction of hits,
+/// mean t, steps; `t` receives the hit distances of the last run.
+pub fn timed_trace(
+    bvh: &Bvh,
+    rays: &RaySet,
+    mode: Mode,
+    reps: usize,
+    t: &mut [f32],
+) -> (f64, f64, f64, Steps) {
     let mut best = f64::INFINITY;
     let mut steps = Steps::default();
     for _ in 0..reps {
         let start = Instant::now();
-        steps = trace(bvh, rays, mode, &mut t);
+        steps = trace(bvh, rays, mode, t);
         best = best.min(start.elapsed().as_secs_f64() * 1e3);
     }
     let (n, sum) = t
@@ -291,9 +517,38 @@ pub fn timed_trace(bvh: &Bvh, rays: &RaySet, mode: Mode, reps: usize) -> (f64, f
     (best, hits, mean, steps)
 }
 
-/// The whole standard work on one mesh: build, then primary and incoherent rays on
-/// the packet and the single-ray path, each line printed to `out` as it is measured.
-/// SAH cost, depth and steps per ray go to `log`.
+/// Traces the shadow rays `set` best of `reps`: time (ms), the fraction of shadow
+/// rays blocked, their mean t_max, steps.
+pub fn timed_occluded(
+    bvh: &Bvh,
+    set: &ShadowRays,
+    mode: Mode,
+    reps: usize,
+    blocked: &mut [u8],
+) -> (f64, f64, f64, Steps) {
+    let mut best = f64::INFINITY;
+    let mut steps = Steps::default();
+    for _ in 0..reps {
+        let start = Instant::now();
+        steps = trace_occluded(bvh, set, mode, blocked);
+        best = best.min(start.elapsed().as_secs_f64() * 1e3);
+    }
+    let (n, sum, b) = set
+        .t_max
+        .iter()
+        .zip(blocked.iter())
+        .filter(|(t, _)| **t > 0.0)
+        .fold((0usize, 0.0f64, 0usize), |(n, s, b), (&t, &x)| {
+            (n + 1, s + t as f64, b + x as usize)
+        });
+    let n1 = n.max(1) as f64;
+    (best, b as f64 / n1, sum / n1, steps)
+}
+
+/// The whole standard work on one mesh: load, build, then per ray set (primary,
+/// incoherent) closest hit and the set's shadow rays (any hit) on the packet and the
+/// single-ray paths, each line printed to `out` as it is measured. Load time, SAH cost,
+/// depth, memory by part and steps per ray go to `log`.
 pub fn run(
     mesh: &Path,
     threads: usize,
@@ -301,94 +556,141 @@ pub fn run(
     out: &mut (dyn std::io::Write + Send),
     log: &mut (dyn std::io::Write + Send),
 ) -> Result<Vec<TraceRun>, ObjError> {
-    let tris = load_mesh(mesh)?;
     let name = mesh.file_name().map_or_else(
         || mesh.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
     crate::parallel::with_threads(Some(threads), || {
-        let (bvh, build_ms) = timed_build(&tris);
+        let start = Instant::now();
+        let obj = load_obj(mesh)?;
+        let load_ms = start.elapsed().as_secs_f64() * 1e3;
+        let (vertices, faces) = (obj.vertices.len(), obj.triangles.len());
+        let (tris, dropped) = mesh_triangles(obj);
+        // the process's peak memory so far, for the log
+        let peak = || peak_rss_mb().map_or_else(String::new, |mb| format!(", peak_rss_MB={mb:.1}"));
         let _ = writeln!(
             log,
-            "octaray bvh: {} nodes, depth {}, SAH cost {:.2}, {} triangles dropped as degenerate",
+            "octaray mesh: {name}: load_ms={load_ms:.1} (read and parse the OBJ file), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate{}",
+            peak()
+        );
+        let Built {
+            bvh,
+            build_ms,
+            collapse_ms,
+        } = timed_build(tris);
+        let ntris = faces;
+        let _ = writeln!(
+            log,
+            "octaray bvh: build_ms={build_ms:.1} (best of 3), {} nodes, depth {}, SAH cost {:.2}",
             bvh.nodes.len(),
             bvh.depth(),
             bvh.sah_cost(),
-            tris.len() - bvh.prims.triangles.len()
         );
-        // the collapse to the 8-wide tree is part of `Bvh::build` (so of build_ms);
-        // timed again here on its own, best of 3
-        let collapse_ms = (0..3)
-            .map(|_| {
-                let start = Instant::now();
-                let w = WideBvh::collapse(&bvh.nodes, &bvh.prims);
-                let ms = start.elapsed().as_secs_f64() * 1e3;
-                std::hint::black_box(w);
-                ms
-            })
-            .fold(f64::INFINITY, f64::min);
         let w = &bvh.wide;
         let lanes: u64 = w.blocks.iter().map(|b| b.count as u64).sum();
         let one_leaf = w.blocks.iter().filter(|b| b.one_leaf).count();
         let _ = writeln!(
             log,
-            "octaray wide bvh: collapse_ms={collapse_ms:.1}, {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
+            "octaray wide bvh: collapse_ms={collapse_ms:.1} (of build_ms), {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
             w.nodes.len(),
             w.depth(),
             w.blocks.len(),
             lanes as f64 / w.blocks.len().max(1) as f64,
             100.0 * one_leaf as f64 / w.blocks.len().max(1) as f64
         );
+        let bytes = AccelBytes::of(&bvh);
+        let per = |b: usize| b as f64 / ntris.max(1) as f64;
+        let _ = writeln!(
+            log,
+            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, triangles in leaf order {:.1}{}",
+            per(bytes.total()),
+            per(bytes.binary_nodes),
+            per(bytes.wide_nodes),
+            per(bytes.wide_blocks),
+            per(bytes.prims),
+            peak()
+        );
         let mut runs = Vec::new();
-        // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional): one line only,
-        // for profiling
+        // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional; rays may be a
+        // shadow set, `primary.shadow`): only those lines, for profiling
         let only = std::env::var("OCTARAY_BENCH_ONLY").unwrap_or_default();
         let (only_rays, only_mode) = only.split_once('/').unwrap_or((&only, ""));
-        for rays in [primary_rays(1024, 1024), incoherent_rays(1 << 20, 7)] {
-            if !only_rays.is_empty() && only_rays != rays.name {
+        let modes = [
+            Mode::Packet8,
+            Mode::Packet8Binary,
+            Mode::Single,
+            Mode::SingleBinary,
+        ];
+        let modes = modes
+            .iter()
+            .filter(|m| only_mode.is_empty() || only_mode == m.label());
+        let wanted = |name: &str| only_rays.is_empty() || only_rays == name;
+        let mut line = |rays: &'static str, n: usize, mode: Mode, r: (f64, f64, f64, Steps)| {
+            let (trace_ms, hits, mean_t, steps) = r;
+            let n = n as f64;
+            let run = TraceRun {
+                mesh: name.clone(),
+                rays,
+                threads,
+                mode,
+                tris: ntris,
+                build_ms,
+                trace_ms,
+                mrays_per_s: n / trace_ms / 1e3,
+                hits,
+                mean_t,
+                boxes_per_ray: steps.boxes as f64 / n,
+                prims_per_ray: steps.prims as f64 / n,
+                bytes_per_tri: per(bytes.total()),
+                peak_rss_mb: peak_rss_mb(),
+            };
+            let _ = writeln!(out, "{run}");
+            let _ = writeln!(
+                log,
+                "  ({} mode={}: {:.1} {} and {:.1} triangle tests per ray)",
+                run.rays,
+                mode.label(),
+                run.boxes_per_ray,
+                match mode {
+                    Mode::Single => "wide node tests (8 boxes each)",
+                    Mode::Packet8 =>
+                        "node tests (8-wide: per packet when the signs agree, per lane when not)",
+                    _ => "box tests",
+                },
+                run.prims_per_ray
+            );
+            runs.push(run);
+        };
+        // one ray set at a time (2²⁰ rays are 24 MB), its shadow rays in its storage
+        for (set, shadow) in [
+            ("primary", "primary.shadow"),
+            ("incoherent", "incoherent.shadow"),
+        ] {
+            if !wanted(set) && !wanted(shadow) {
                 continue;
             }
-            for mode in [
-                Mode::Packet8,
-                Mode::Packet8Binary,
-                Mode::Single,
-                Mode::SingleBinary,
-            ] {
-                if !only_mode.is_empty() && only_mode != mode.label() {
-                    continue;
+            let rays = if set == "primary" {
+                primary_rays(1024, 1024)
+            } else {
+                incoherent_rays(1 << 20, 7)
+            };
+            let mut t = vec![0.0f32; rays.origin.len()];
+            if wanted(set) {
+                for &mode in modes.clone() {
+                    let r = timed_trace(&bvh, &rays, mode, reps, &mut t);
+                    line(rays.name, rays.origin.len(), mode, r);
                 }
-                let (trace_ms, hits, mean_t, steps) = timed_trace(&bvh, &rays, mode, reps);
-                let n = rays.origin.len() as f64;
-                let run = TraceRun {
-                    mesh: name.clone(),
-                    rays: rays.name,
-                    threads,
-                    mode,
-                    tris: tris.len(),
-                    build_ms,
-                    trace_ms,
-                    mrays_per_s: n / trace_ms / 1e3,
-                    hits,
-                    mean_t,
-                    boxes_per_ray: steps.boxes as f64 / n,
-                    prims_per_ray: steps.prims as f64 / n,
-                };
-                let _ = writeln!(out, "{run}");
-                let _ = writeln!(
-                    log,
-                    "  ({} mode={}: {:.1} {} and {:.1} triangle tests per ray)",
-                    run.rays,
-                    mode.label(),
-                    run.boxes_per_ray,
-                    match mode {
-                        Mode::Single => "wide node tests (8 boxes each)",
-                        Mode::Packet8 =>
-                            "node tests (8-wide: per packet when the signs agree, per lane when not)",
-                        _ => "box tests",
-                    },
-                    run.prims_per_ray
-                );
-                runs.push(run);
+            }
+            if wanted(shadow) {
+                // from the closest hits of the single-ray path
+                trace(&bvh, &rays, Mode::Single, &mut t);
+                let set = shadow_rays(rays, t);
+                let n = set.t_max.iter().filter(|&&t| t > 0.0).count();
+                let mut blocked = vec![0u8; set.t_max.len()];
+                for &mode in modes.clone() {
+                    let r = timed_occluded(&bvh, &set, mode, reps, &mut blocked);
+                    line(set.rays.name, n, mode, r);
+                }
             }
         }
         Ok(runs)
@@ -426,4 +728,29 @@ pub fn torus(nu: usize, nv: usize) -> Vec<Triangle32> {
         }
     }
     tris
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// bench-trace takes a mesh's triangles as the renderer does: the zero-area ones
+    /// (collinear corners, a repeated corner, all three the same) are dropped, not
+    /// traced (10,000 identical degenerate faces took bench-trace 106 s).
+    #[test]
+    fn degenerate_triangles_are_dropped_as_the_renderer_drops_them() {
+        let path = std::env::temp_dir().join(format!("octaray-degen-{}.obj", std::process::id()));
+        let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0 0 1\n");
+        text += "f 1 2 3\nf 1 2 4\nf 1 1 3\nf 2 2 2\nf 1 3 5\n";
+        text += &"f 3 3 3\n".repeat(1000);
+        std::fs::write(&path, text).unwrap();
+        let tris = load_mesh(&path);
+        std::fs::remove_file(&path).unwrap();
+        let tris = tris.unwrap();
+        assert_eq!(tris.len(), 2, "{tris:?}");
+        assert_eq!(tris[0].v[1], Vec3::X);
+        assert_eq!(tris[1].v[2], Vec3::Z);
+        let mesh = crate::scene::obj::parse_obj("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "d.obj");
+        assert_eq!(mesh_triangles(mesh.unwrap()), (vec![], 1));
+    }
 }

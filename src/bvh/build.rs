@@ -22,6 +22,7 @@
 //! perf profile of build and collapse before).
 
 use glam::Vec4;
+use rayon::prelude::*;
 use wide::{f32x4, f32x8, i32x4};
 
 use super::memory::huge_vec;
@@ -145,6 +146,13 @@ impl Bounds {
         b
     }
 
+    fn union(self, o: Bounds) -> Bounds {
+        Bounds {
+            geo: self.geo.fast_min(o.geo),
+            cen: self.cen.fast_min(o.cen),
+        }
+    }
+
     /// The centroid bounds of `part`, the bounds `geo` (known).
     fn with_geo(part: &[Ref], geo: Box8) -> Bounds {
         let mut cen = EMPTY8;
@@ -172,24 +180,39 @@ impl Bounds {
 
 /// Builds the node array over the BVH kinds of `prims` and reorders those kinds'
 /// arrays into leaf order. Returns the nodes (empty when there is nothing to bound).
+///
+/// On more than one worker thread, the subtrees of large ranges are built in parallel
+/// (each in an array of its own, joined in the serial build's order at the end): the
+/// nodes, their order and the primitive order are those of the serial build.
 pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
     let total: usize = PrimKind::BVH_KINDS.iter().map(|&k| prims.len(k)).sum();
     if total == 0 {
         return Vec::new();
     }
+    let parallel =
+        total > PARALLEL_REFS && crate::parallel::parallel() && rayon::current_num_threads() > 1;
     // the large arrays of the build in huge pages (`huge_vec`): a fresh 4 KiB page
     // costs a fault here; touching 120 MB took 85–130 ms in 4 KiB pages, 15–25 ms
     // in 2 MiB ones (scratch test, this machine). Build of torus1m, thread CPU time,
     // best of 5: references 51 -> 23 Mcycles, the reorder below 141 -> 69.
     let mut refs = huge_vec(total);
-    let mut root = Bounds::EMPTY;
     for kind in PrimKind::BVH_KINDS {
-        for i in 0..prims.len(kind) {
-            let r = Ref::new(&prims.bounds(kind, i), i, kind as u32);
-            root.add(&r);
-            refs.push(r);
+        let n = prims.len(kind);
+        let make = |i: usize| Ref::new(&prims.bounds(kind, i), i, kind as u32);
+        if parallel {
+            refs.par_extend((0..n).into_par_iter().map(make));
+        } else {
+            refs.extend((0..n).map(make));
         }
     }
+    // (a union of boxes is a `min` of lanes: the same in any order)
+    let root = if parallel {
+        refs.par_chunks(SAMPLE)
+            .map(Bounds::of)
+            .reduce(|| Bounds::EMPTY, Bounds::union)
+    } else {
+        Bounds::of(&refs)
+    };
     // at most 2·total − 1 nodes and one pad: never reallocated, so the pad below
     // keeps every pair of children on one 64-byte cache line
     let mut nodes = huge_vec(2 * total);
@@ -199,88 +222,220 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
         // root and has no area (no SAH cost)
         nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
     }
-    // leaves are found in order of `start` (depth first, left before right) and
-    // cover the references in order, so a leaf's primitives will start at the count
-    // of its kind in the leaves before it
-    let mut leaves = Leaves {
-        next: [0; 8],
-        #[cfg(debug_assertions)]
-        covered: 0,
-    };
-    let mut tasks = Vec::with_capacity(2 * MEDIAN_DEPTH);
-    tasks.push((0u32, 0usize, total, 0usize, root));
-    while let Some((ni, start, end, depth, b)) = tasks.pop() {
-        let part = &mut refs[start..end];
-        let n = part.len();
-        let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind() != part[0].kind());
-        if n <= SMALL && !mixed {
-            small_subtree(part, b.geo, ni as usize, start, &mut nodes, &mut leaves);
-            continue;
-        }
-        let (mid, axis, lb, rb) = match choose_split(part, &b, depth) {
-            Split::Leaf if !mixed => {
-                nodes[ni as usize] = leaves.leaf(part, start, b.geo);
-                continue;
-            }
-            Split::Leaf => {
-                // one kind per leaf: split off the first kind
-                let k = part[0].kind();
-                let (mid, lb, rb) = partition(part, |r| r.kind() == k);
-                (mid, widest_axis(b.centroid_extent()), lb, rb)
-            }
-            Split::At(s) => {
-                // c's bin (as in `bin_split`: (c − base) · scale truncated, at most
-                // the last bin) is below `bin` ⟺ (c − base) · scale < bin: the
-                // product is >= 0 (base is the least centroid) and `bin` is at most
-                // the last bin, so neither the truncation nor the clamp changes the
-                // comparison (was a saturating float-to-int cast per reference)
-                let (axis, bin, base, scale) = (s.axis, s.bin as f32, s.base, s.scale);
-                let left = |r: &Ref| (r.centroid2_on(axis) - base) * scale < bin;
-                // Tried: the branchless partition on every range: thread CPU time of
-                // the torus1m build 408, 431, 389 ms on ranges <= SAMPLE only; 449,
-                // 468, 466 on all (SAH 52.26, the tree changes slightly).
-                let (mid, lb, rb) = match s.sides {
-                    Some((lgeo, rgeo)) => {
-                        let mid = partition_branchless(part, left);
-                        let (l, r) = part.split_at(mid);
-                        (mid, Bounds::with_geo(l, lgeo), Bounds::with_geo(r, rgeo))
-                    }
-                    None => partition(part, left),
-                };
-                (mid, axis, lb, rb)
-            }
-            Split::Half(axis) => {
-                part.select_nth_unstable_by(n / 2, |a, b| {
-                    a.centroid2_on(axis).total_cmp(&b.centroid2_on(axis))
-                });
-                let (l, r) = part.split_at(n / 2);
-                (n / 2, axis, Bounds::of(l), Bounds::of(r))
-            }
-        };
-        let (mid, lb, rb) = if mid == 0 || mid == n {
-            let (l, r) = part.split_at(n / 2);
-            (n / 2, Bounds::of(l), Bounds::of(r))
-        } else {
-            (mid, lb, rb)
-        };
-        let left = nodes.len() as u32;
-        nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
-        nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
-        nodes[ni as usize] = BvhNode::interior(b.aabb(), left, axis);
-        tasks.push((left + 1, start + mid, end, depth + 1, rb));
-        tasks.push((left, start, start + mid, depth + 1, lb));
+    if parallel {
+        let tree = par_subtree(&mut refs, root, 0);
+        let mut base = [0; 8];
+        tree.place(0, &mut nodes, &mut base);
+    } else {
+        let mut leaves = Leaves::new(0);
+        serial_subtree(&mut refs, 0, root, 0, &mut nodes, &mut leaves);
     }
     // reorder the BVH kinds into leaf order: each kind's new array is its
     // references' primitives in reference order, one gather (was a push per
     // primitive, leaf by leaf, after a pass over a list of the leaves)
     use PrimKind::{Quadric, Sphere, Triangle};
-    prims.spheres = gather(&refs, Sphere, &prims.spheres);
-    prims.sphere_obj = gather(&refs, Sphere, &prims.sphere_obj);
-    prims.triangles = gather(&refs, Triangle, &prims.triangles);
-    prims.triangle_obj = gather(&refs, Triangle, &prims.triangle_obj);
-    prims.quadrics = gather(&refs, Quadric, &prims.quadrics);
-    prims.quadric_obj = gather(&refs, Quadric, &prims.quadric_obj);
+    prims.spheres = gather(&refs, Sphere, &prims.spheres, parallel);
+    prims.sphere_obj = gather(&refs, Sphere, &prims.sphere_obj, parallel);
+    prims.triangles = gather(&refs, Triangle, &prims.triangles, parallel);
+    prims.triangle_obj = gather(&refs, Triangle, &prims.triangle_obj, parallel);
+    prims.quadrics = gather(&refs, Quadric, &prims.quadrics, parallel);
+    prims.quadric_obj = gather(&refs, Quadric, &prims.quadric_obj, parallel);
     nodes
+}
+
+/// Builds with more references than this use the worker threads.
+const PARALLEL_REFS: usize = 1 << 15;
+/// Ranges of at most this many references are one parallel task (built serially).
+const TASK_REFS: usize = 1 << 14;
+
+/// What the builder does with a range.
+enum Step {
+    /// One leaf.
+    Leaf,
+    /// A subtree of at most [`SMALL`] references of one kind ([`small_subtree`]).
+    Small,
+    /// Two children: the first `mid` references (bounds `lb`) and the rest (`rb`),
+    /// split on `axis`.
+    Split {
+        mid: usize,
+        axis: usize,
+        lb: Bounds,
+        rb: Bounds,
+    },
+}
+
+/// The step for the range `part` (bounds `b`) at `depth`; a split has partitioned it.
+fn step(part: &mut [Ref], b: &Bounds, depth: usize) -> Step {
+    let n = part.len();
+    let mixed = n <= MAX_LEAF && part.iter().any(|r| r.kind() != part[0].kind());
+    if n <= SMALL && !mixed {
+        return Step::Small;
+    }
+    let (mid, axis, lb, rb) = match choose_split(part, b, depth) {
+        Split::Leaf if !mixed => return Step::Leaf,
+        Split::Leaf => {
+            // one kind per leaf: split off the first kind
+            let k = part[0].kind();
+            let (mid, lb, rb) = partition(part, |r| r.kind() == k);
+            (mid, widest_axis(b.centroid_extent()), lb, rb)
+        }
+        Split::At(s) => {
+            // c's bin (as in `bin_split`: (c − base) · scale truncated, at most
+            // the last bin) is below `bin` ⟺ (c − base) · scale < bin: the
+            // product is >= 0 (base is the least centroid) and `bin` is at most
+            // the last bin, so neither the truncation nor the clamp changes the
+            // comparison (was a saturating float-to-int cast per reference)
+            let (axis, bin, base, scale) = (s.axis, s.bin as f32, s.base, s.scale);
+            let left = |r: &Ref| (r.centroid2_on(axis) - base) * scale < bin;
+            // Tried: the branchless partition on every range: thread CPU time of
+            // the torus1m build 408, 431, 389 ms on ranges <= SAMPLE only; 449,
+            // 468, 466 on all (SAH 52.26, the tree changes slightly).
+            let (mid, lb, rb) = match s.sides {
+                Some((lgeo, rgeo)) => {
+                    let mid = partition_branchless(part, left);
+                    let (l, r) = part.split_at(mid);
+                    (mid, Bounds::with_geo(l, lgeo), Bounds::with_geo(r, rgeo))
+                }
+                None => partition(part, left),
+            };
+            (mid, axis, lb, rb)
+        }
+        Split::Half(axis) => {
+            part.select_nth_unstable_by(n / 2, |a, b| {
+                a.centroid2_on(axis).total_cmp(&b.centroid2_on(axis))
+            });
+            let (l, r) = part.split_at(n / 2);
+            (n / 2, axis, Bounds::of(l), Bounds::of(r))
+        }
+    };
+    if mid == 0 || mid == n {
+        let (l, r) = part.split_at(n / 2);
+        let (lb, rb) = (Bounds::of(l), Bounds::of(r));
+        return Step::Split {
+            mid: n / 2,
+            axis,
+            lb,
+            rb,
+        };
+    }
+    Step::Split { mid, axis, lb, rb }
+}
+
+/// Builds the subtree over `refs` (bounds `root`, at `depth`) whose root is node `ni`
+/// of `nodes`, appending its other nodes: a node's children are a pair appended when
+/// it is split, and the left subtree is built before the right one (depth first).
+/// `start` is the index of `refs[0]` among all references (checks only).
+fn serial_subtree(
+    refs: &mut [Ref],
+    ni: usize,
+    root: Bounds,
+    depth: usize,
+    nodes: &mut Vec<BvhNode>,
+    leaves: &mut Leaves,
+) {
+    let mut tasks = Vec::with_capacity(2 * MEDIAN_DEPTH);
+    tasks.push((ni as u32, 0usize, refs.len(), depth, root));
+    while let Some((ni, start, end, depth, b)) = tasks.pop() {
+        let part = &mut refs[start..end];
+        match step(part, &b, depth) {
+            Step::Small => {
+                small_subtree(part, b.geo, ni as usize, start, nodes, leaves);
+            }
+            Step::Leaf => {
+                nodes[ni as usize] = leaves.leaf(part, start, b.geo);
+            }
+            Step::Split { mid, axis, lb, rb } => {
+                let left = nodes.len() as u32;
+                nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+                nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+                nodes[ni as usize] = BvhNode::interior(b.aabb(), left, axis);
+                tasks.push((left + 1, start + mid, end, depth + 1, rb));
+                tasks.push((left, start, start + mid, depth + 1, lb));
+            }
+        }
+    }
+}
+
+/// A subtree built on the worker threads.
+enum Subtree {
+    /// Built serially, in an array of its own: its root at 0, an unused pad at 1 and
+    /// from 2 on the nodes the serial build appends for it, with child indices into
+    /// this array and leaf primitive offsets from 0; `counts`: its primitives by kind.
+    Block {
+        nodes: Vec<BvhNode>,
+        counts: [u32; 8],
+    },
+    /// An interior node (its child index still unset) and its two subtrees.
+    Split {
+        node: BvhNode,
+        children: Box<(Subtree, Subtree)>,
+    },
+}
+
+/// The subtree over `refs` (bounds `root`, at `depth`): ranges larger than
+/// [`TASK_REFS`] are split here and their children built in parallel.
+fn par_subtree(refs: &mut [Ref], root: Bounds, depth: usize) -> Subtree {
+    if refs.len() > TASK_REFS
+        && let Step::Split { mid, axis, lb, rb } = step(refs, &root, depth)
+    {
+        let (l, r) = refs.split_at_mut(mid);
+        let children = rayon::join(
+            || par_subtree(l, lb, depth + 1),
+            || par_subtree(r, rb, depth + 1),
+        );
+        return Subtree::Split {
+            node: BvhNode::interior(root.aabb(), 0, axis),
+            children: Box::new(children),
+        };
+    }
+    // (a range above TASK_REFS is always split, a leaf holds at most MAX_LEAF; a
+    // step that splits nothing leaves the range as it was, for the serial build)
+    let mut nodes = Vec::with_capacity(2 * refs.len());
+    nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+    nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+    let mut leaves = Leaves::new(0);
+    serial_subtree(refs, 0, root, depth, &mut nodes, &mut leaves);
+    Subtree::Block {
+        nodes,
+        counts: leaves.next,
+    }
+}
+
+impl Subtree {
+    /// Puts this subtree's root at node `ni` and appends its other nodes to `nodes`
+    /// in the serial build's order; `base`: the primitives of each kind in the leaves
+    /// before it.
+    fn place(self, ni: usize, nodes: &mut Vec<BvhNode>, base: &mut [u32; 8]) {
+        match self {
+            Subtree::Block { nodes: own, counts } => {
+                // own[j] for j >= 2 goes to off + j − 2
+                let off = nodes.len() as u32;
+                let moved = |mut n: BvhNode| {
+                    if n.is_leaf() {
+                        n.first += base[n.kind() as usize];
+                    } else {
+                        n.first = n.first + off - 2;
+                    }
+                    n
+                };
+                nodes[ni] = moved(own[0]);
+                nodes.extend(own[2..].iter().map(|&n| moved(n)));
+                for (b, c) in base.iter_mut().zip(counts) {
+                    *b += c;
+                }
+            }
+            Subtree::Split { mut node, children } => {
+                let left = nodes.len();
+                nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+                nodes.push(BvhNode::interior(Aabb::EMPTY, 0, 0));
+                node.first = left as u32;
+                nodes[ni] = node;
+                let (l, r) = *children;
+                l.place(left, nodes, base);
+                r.place(left + 1, nodes, base);
+            }
+        }
+    }
 }
 
 /// Leaf primitive offsets: leaves are made in reference order, so a leaf's
@@ -293,6 +448,17 @@ struct Leaves {
 }
 
 impl Leaves {
+    /// No leaves yet; the first will start at reference `start`.
+    fn new(start: usize) -> Leaves {
+        #[cfg(not(debug_assertions))]
+        let _ = start;
+        Leaves {
+            next: [0; 8],
+            #[cfg(debug_assertions)]
+            covered: start,
+        }
+    }
+
     /// The leaf over `part` (one kind), which starts at reference `start`.
     #[inline]
     fn leaf(&mut self, part: &[Ref], start: usize, geo: Box8) -> BvhNode {
@@ -627,9 +793,16 @@ fn partition(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, B
 }
 
 /// The primitives of `kind` in the order of their references.
-fn gather<T: Copy>(refs: &[Ref], kind: PrimKind, from: &[T]) -> Vec<T> {
+fn gather<T: Copy + Send + Sync>(
+    refs: &[Ref],
+    kind: PrimKind,
+    from: &[T],
+    parallel: bool,
+) -> Vec<T> {
     let mut v = huge_vec(from.len());
-    if from.len() == refs.len() {
+    if from.len() == refs.len() && parallel {
+        v.par_extend(refs.par_iter().map(|r| from[r.index()]));
+    } else if from.len() == refs.len() {
         // one kind only
         v.extend(refs.iter().map(|r| from[r.index()]));
     } else {
@@ -660,4 +833,67 @@ fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize 
         j += is_left as usize;
     }
     j
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::geometry::sphere::Sphere32;
+
+    /// The nodes without the pad (node 1, present or not by the address of the
+    /// array), child indices shifted to match.
+    fn without_pad(nodes: &[BvhNode]) -> Vec<BvhNode> {
+        let padded = nodes.len() > 1 && (nodes[0].is_leaf() || nodes[0].first == 2);
+        if !padded {
+            return nodes.to_vec();
+        }
+        let mut out = vec![nodes[0]];
+        out.extend_from_slice(&nodes[2..]);
+        for n in &mut out {
+            if !n.is_leaf() {
+                n.first -= 1;
+            }
+        }
+        out
+    }
+
+    /// A torus of triangles with spheres strewn over it (two kinds, so leaves and
+    /// primitive offsets by kind are exercised).
+    fn prims() -> PrimSet {
+        let mut p = PrimSet::from_triangles(crate::bvh::bench::torus(250, 160));
+        for k in 0..3000 {
+            let a = k as f64 * 0.37;
+            let c = DVec3::new(a.cos() * 1.2, (k % 7) as f64 * 0.05, a.sin() * 1.2);
+            p.spheres
+                .push(Sphere32::new(c, 0.01 + (k % 5) as f64 * 0.004, DVec3::ZERO));
+            p.sphere_obj.push(1 + k as u32);
+        }
+        p
+    }
+
+    /// The build on two threads (subtrees in parallel, joined) gives the serial
+    /// build's nodes in the serial order, and the same primitive order.
+    #[test]
+    fn parallel_build_is_the_serial_build() {
+        let (mut serial, mut parallel) = (prims(), prims());
+        assert!(serial.triangles.len() + serial.spheres.len() > PARALLEL_REFS);
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let a = one.install(|| build(&mut serial));
+        let b = two.install(|| build(&mut parallel));
+        assert_eq!(without_pad(&a), without_pad(&b));
+        assert_eq!(serial.triangles, parallel.triangles);
+        assert_eq!(serial.spheres, parallel.spheres);
+        assert_eq!(serial.sphere_obj, parallel.sphere_obj);
+        // and it is a tree with more than one parallel task
+        assert!(a.len() > 4 * TASK_REFS / MAX_LEAF, "{} nodes", a.len());
+    }
 }

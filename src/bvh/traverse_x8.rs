@@ -418,6 +418,17 @@ impl Bvh {
         Mask8::from_bits(blocked)
     }
 
+    /// [`Bvh::occluded_x8`] through the binary tree only (the benches' `mode=8b`).
+    pub fn occluded_x8_binary<T: TriangleKernel>(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        self.occluded_x8_with::<T>(r, active, t_max, None, steps)
+    }
+
     /// The any-hit query: the list beside the tree, then the wide tree when
     /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
     /// packet is coherent enough, else the binary one.
