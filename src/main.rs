@@ -10,7 +10,9 @@ use glam::DVec3;
 use octaray::output::{check_output, check_output_dir, write_image, write_next_output};
 use octaray::render::RenderSettings;
 use octaray::render::profile::Profile;
-use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
+use octaray::scene::parse::{
+    MAX_PIXELS, Parsed, parse_scene, parse_scene_file, parse_scene_reader,
+};
 use octaray::scene::{Camera, Scene};
 use octaray::viewer;
 
@@ -118,7 +120,8 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
 
 #[derive(Args, Debug)]
 struct ViewArgs {
-    /// Scene file; without it, the assignment's given scene built into the binary.
+    /// Scene file (`-`: standard input); without it, the assignment's given scene
+    /// built into the binary.
     scene: Option<PathBuf>,
     /// Render profile for the window and captures: a name (reference, accurate, fast,
     /// preview; looked up in ./profiles/, else built in) or a path to a .toml file.
@@ -142,7 +145,8 @@ struct ViewArgs {
 
 #[derive(Args, Debug, Default)]
 struct RenderArgs {
-    /// Scene file; without it, the assignment's given scene built into the binary.
+    /// Scene file (`-`: standard input); without it, the assignment's given scene
+    /// built into the binary.
     scene: Option<PathBuf>,
     /// Output file (.bmp or .png, replaced atomically); default: the next free Output_1N.bmp.
     #[arg(short, long)]
@@ -238,6 +242,11 @@ impl Failure {
 
 fn load(path: Option<&Path>) -> Result<(Parsed, String), Failure> {
     let (parsed, name) = match path {
+        // `-`: standard input
+        Some(p) if p.as_os_str() == "-" => (
+            parse_scene_reader(std::io::stdin().lock(), "<stdin>"),
+            "<stdin>".to_string(),
+        ),
         Some(p) => (parse_scene_file(p), p.display().to_string()),
         None => (
             parse_scene(Scene::GIVEN, "<built-in given scene>"),

@@ -99,7 +99,7 @@ pub fn parse_obj(text: &str, file: &str) -> Result<Mesh, ObjError> {
                         .ok_or_else(|| {
                             err(format!(
                                 "v: '{}' is not a finite number",
-                                tok.escape_debug()
+                                super::text::escaped(tok)
                             ))
                         })?;
                 }
@@ -110,7 +110,10 @@ pub fn parse_obj(text: &str, file: &str) -> Result<Mesh, ObjError> {
                 for tok in it {
                     let idx = tok.split('/').next().unwrap_or("");
                     let i: i64 = idx.parse().map_err(|_| {
-                        err(format!("f: '{}' is not a vertex index", tok.escape_debug()))
+                        err(format!(
+                            "f: '{}' is not a vertex index",
+                            super::text::escaped(tok)
+                        ))
                     })?;
                     let nv = vertices.len() as i64;
                     let abs = if i > 0 { i - 1 } else { nv + i };
