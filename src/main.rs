@@ -334,6 +334,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         progress: true,
     };
     let profile = load_profile("--profile", &args.profile)?;
+    warn_caustic_pairs(&scene, &profile);
     let prepared = profile.prepare(&scene);
     let rendered = prepared.render(&settings);
     warn_f32_detail(&scene, &prepared);
@@ -367,6 +368,13 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The warning where a scene has more light-glass pairs than caustic photons.
+fn warn_caustic_pairs(scene: &Scene, profile: &Profile) {
+    if let Some(w) = octaray::render::caustic::pairs_warning(scene, profile.photons) {
+        say!("{w}");
+    }
+}
+
 /// The warning where the packet path's f32 loses the scene's smallest object (issue 5:
 /// where the fast path cannot hold, say so and name the profile that does).
 fn warn_f32_detail(scene: &octaray::scene::Scene, prepared: &octaray::render::prepared::Prepared) {
@@ -386,6 +394,7 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         None => viewer::default_profile_name(),
     };
     let profile = load_profile("--profile", profile_name)?;
+    warn_caustic_pairs(&parsed.scene, &profile);
     if let Some(frames) = args.frames {
         let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames);
         out!("{name}: {report}");
