@@ -261,3 +261,66 @@ fn results_do_not_depend_on_how_the_stream_is_cut() {
         }
     }
 }
+
+/// Profile errors are plain: the key, the allowed values and what was found, at
+/// file:line:column; never the TOML deserializer's words (`invalid type: integer
+/// ... as i128, expected u32`, ``key `'photons'`: duplicate key``, ``unknown field ``,
+/// expected one of ...``).
+#[test]
+fn profile_errors_name_the_key_and_the_allowed_values() {
+    use octaray::render::profile::Profile;
+    let error = |text: &str| match Profile::from_toml("p", text, "p.toml") {
+        Ok(p) => panic!("accepted {text:?} as {p:?}"),
+        Err(e) => e.to_string(),
+    };
+    let cases = [
+        (
+            "photons = 18446744073709551616",
+            "p.toml:1:11: key `photons`: expected an integer from 0 to 10000000, found 18446744073709551616",
+        ),
+        (
+            "photons = 1\n'photons' = 2",
+            "p.toml:2:1: key `photons`: set twice",
+        ),
+        (
+            "\"\" = 1",
+            "p.toml:1:1: an empty key: unknown key; the keys are path, samples_per_pixel, \
+             resolution_scale, max_recursion, photons, single_ray_lanes, triangle_test, \
+             ray_offset, shadow_any_hit",
+        ),
+        (
+            "path = \"fast\"",
+            "p.toml:1:8: key `path`: expected \"reference\" or \"packet\", found \"fast\"",
+        ),
+        (
+            "samples_per_pixel = 2.5",
+            "p.toml:1:21: key `samples_per_pixel`: expected a square number of samples from 1 \
+             to 64 (1, 4, 9, 16, 25, 36, 49 or 64), found 2.5",
+        ),
+        (
+            "shadow_any_hit = 1",
+            "p.toml:1:18: key `shadow_any_hit`: expected true or false, found 1",
+        ),
+        (
+            "\n[fast]\nphotons = 1",
+            "p.toml:2:2: key `fast`: unknown key; the keys are",
+        ),
+        (
+            r#""\u001b[2J" = 1"#,
+            "p.toml:1:1: key `\\u{1b}[2J`: unknown key",
+        ),
+    ];
+    for (text, want) in cases {
+        let e = error(text);
+        assert!(e.starts_with(want), "{text:?}:\n{e}\nwant\n{want}");
+        for internal in [
+            "invalid type",
+            "i128",
+            "expected u32",
+            "unknown field",
+            "duplicate key",
+        ] {
+            assert!(!e.contains(internal), "{text:?}: {e}");
+        }
+    }
+}

@@ -156,11 +156,12 @@ fn too_long(max: usize) -> io::Error {
 /// Characters of a token shown in a message before it is cut.
 pub const SHOWN_CHARS: usize = 100;
 
-/// `s` as a message quotes it: every character Rust's `escape_debug` escapes (control
-/// characters, invisible and format characters such as U+FEFF and U+200B, quotes and
-/// backslashes) as `\u{..}` or `\'`, the rest as it is; past [`SHOWN_CHARS`]
-/// characters cut, with the token's length in bytes. Write it inside quotes:
-/// `format!("found '{}'", escaped(token))`.
+/// `s` as a message quotes it: control characters, invisible and format characters
+/// (U+FEFF, U+200B, bidirectional overrides, combining marks: whatever `escape_debug`
+/// escapes) as `\u{..}`, `\t`, `\r`, `\n`, a backslash as `\\` (so an escape cannot
+/// be mistaken for the file's text), quotes and everything else as they are; past
+/// [`SHOWN_CHARS`] characters cut, with the token's length in bytes. Write it inside
+/// quotes: `format!("found '{}'", escaped(token))`.
 pub fn escaped(s: &str) -> Escaped<'_> {
     Escaped(s)
 }
@@ -172,9 +173,16 @@ pub struct Escaped<'a>(&'a str);
 impl fmt::Display for Escaped<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let s = self.0;
-        match s.char_indices().nth(SHOWN_CHARS) {
-            None => write!(f, "{}", s.escape_debug()),
-            Some((cut, _)) => write!(f, "{}…({} bytes)", s[..cut].escape_debug(), s.len()),
+        let cut = s.char_indices().nth(SHOWN_CHARS).map(|(i, _)| i);
+        for c in s[..cut.unwrap_or(s.len())].chars() {
+            match c {
+                '"' | '\'' => write!(f, "{c}")?,
+                c => write!(f, "{}", c.escape_debug())?,
+            }
+        }
+        match cut {
+            Some(_) => write!(f, "…({} bytes)", s.len()),
+            None => Ok(()),
         }
     }
 }
@@ -257,6 +265,7 @@ mod tests {
         assert_eq!(e("x\ty\r"), "x\\ty\\r");
         assert_eq!(e("\u{202e}cba"), "\\u{202e}cba");
         assert_eq!(e("sphère"), "sphère");
+        assert_eq!(e("a'b\"c\\"), "a'b\"c\\\\");
         let long = "7".repeat(5000);
         let shown = e(&long);
         assert!(shown.starts_with(&"7".repeat(SHOWN_CHARS)), "{shown}");
