@@ -24,6 +24,11 @@ pub const MAX_RECURSION_LEVEL: i64 = 1_000_000;
 pub const MAX_PIXELS: i64 = 16_384;
 /// Largest accepted object or light count.
 pub const MAX_COUNT: i64 = 50_000_000;
+/// Most triangles a scene may hold, triangle objects, prism faces (8 a prism) and mesh
+/// triangles together: the packet path numbers its triangles in
+/// [`INDEX_BITS`](crate::geometry::INDEX_BITS) = 28 bits, and a 4 GiB OBJ file of fan
+/// polygons can describe two billion.
+pub const MAX_TRIANGLES: u64 = (1 << crate::geometry::INDEX_BITS) - 1;
 
 /// A rejected scene file: `file:line:col: field: message`, or `file: field: message`
 /// where there is no position (a file that cannot be read).
@@ -105,6 +110,11 @@ pub fn parse_scene(text: &str, file: &str) -> Result<Parsed, ParseError> {
 /// before its first such byte fails as usual; one that fails at or after it (a binary
 /// file fails at once) is reported as not a text scene file, at that byte.
 pub fn parse_scene_reader(input: impl Read, file: &str) -> Result<Parsed, ParseError> {
+    read_scene(input, file, MAX_TRIANGLES)
+}
+
+/// [`parse_scene_reader`] with a triangle limit of its own (tests).
+fn read_scene(input: impl Read, file: &str, max_triangles: u64) -> Result<Parsed, ParseError> {
     let mut r = Reader {
         file,
         tokens: Tokens::new(Limited::new(input)),
@@ -113,6 +123,7 @@ pub fn parse_scene_reader(input: impl Read, file: &str) -> Result<Parsed, ParseE
         text: String::new(),
         warnings: Vec::new(),
         too_large: None,
+        max_triangles,
     };
     let scene = match r.scene() {
         Ok(scene) => scene,
@@ -368,6 +379,8 @@ struct Reader<'f, R> {
     text: String,
     warnings: Vec<String>,
     too_large: Option<ParseError>,
+    /// [`MAX_TRIANGLES`] (lower in tests).
+    max_triangles: u64,
 }
 
 impl<R: Read> Reader<'_, R> {
@@ -534,6 +547,7 @@ impl<R: Read> Reader<'_, R> {
         let n_objects = self.integer("n_objects", 0, MAX_COUNT)?;
         let mut objects = Vec::new();
         let mut per_kind = [0usize; 5];
+        let mut triangles = 0u64;
         for k in 1..=n_objects {
             let field = format!("object {k}: kind");
             let t = self.next(&field, "an object kind")?;
@@ -566,6 +580,23 @@ impl<R: Read> Reader<'_, R> {
                 },
                 s => s,
             };
+            triangles += match &shape {
+                Shape::Triangle { .. } => 1,
+                Shape::Prism { .. } => 8,
+                Shape::Mesh(m) => m.triangles.len() as u64,
+                _ => 0,
+            };
+            if triangles > self.max_triangles {
+                return Err(self.error_at(
+                    Some(&t),
+                    &who,
+                    format!(
+                        "the scene's triangles (triangle objects, 8 per prism, mesh triangles) \
+                         pass octaray's limit of {}",
+                        self.max_triangles
+                    ),
+                ));
+            }
             objects.push(Object { shape, material });
         }
 
@@ -774,4 +805,31 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
     let limit = 1e-12 * e1.length() * e2.length();
     // NaN (coordinates so large that the cross product overflows) is degenerate too.
     n.partial_cmp(&limit) != Some(std::cmp::Ordering::Greater)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Triangles are counted over the whole scene (triangle objects, 8 per prism, mesh
+    /// triangles) and refused past the limit at the object that passes it (the packet
+    /// path's 28-bit triangle numbers wrapped silently).
+    #[test]
+    fn triangles_past_the_limit_are_refused_at_the_object_that_passes_it() {
+        let prism = "prism 0 0 0 1 0 0 0 1 0 0 0 1 1 0 1 0 1 1 1 1 1 0 0 0 0 1 1 1.5 0";
+        let triangle = "triangle 0 0 0 1 0 0 0 1 0 1 1 1 0 0 0 0 1";
+        let text = format!("1 8 4\n{prism}\n{prism}\n{triangle}\n{triangle}\n0 0\n");
+        // 8 + 8 + 1 + 1 = 18 triangles
+        assert!(read_scene(text.as_bytes(), "t.txt", 18).is_ok());
+        let e = read_scene(text.as_bytes(), "t.txt", 17).unwrap_err();
+        assert_eq!(
+            (e.line, e.col, e.field.as_str()),
+            (5, 1, "triangle 2"),
+            "{e}"
+        );
+        assert!(e.message.contains("octaray's limit of 17"), "{e}");
+        let e = read_scene(text.as_bytes(), "t.txt", 10).unwrap_err();
+        assert_eq!((e.line, e.field.as_str()), (3, "prism 2"), "{e}");
+        assert_eq!(MAX_TRIANGLES, (1 << 28) - 1);
+    }
 }
