@@ -70,8 +70,8 @@ measure "the given scene, 768 x 768 (baseline)" render -o given.bmp
 measure "image 4096 x 4096, BMP (an empty scene)" render empty.txt --size 4096 -o i.bmp
 measure "image 16384 x 16384, BMP (the largest)" render empty.txt -o i.bmp
 measure "image 8192 x 8192, PNG" render empty.txt --size 8192 -o i.png
-measure "recursion level 1000000, mirror sphere, 1 x 128, --threads 2" \
-    render mirror.txt --size 1x128 --threads 2 -o m.bmp
+measure "recursion level 1000000, mirror sphere, 1 x 64, --threads 2" \
+    render mirror.txt --size 1x64 --threads 2 -o m.bmp
 measure "100 000 spheres, 64 x 64" render spheres100k.txt --size 64 -o s.bmp
 measure "1 000 000 spheres, 64 x 64" render spheres1m.txt --size 64 -o s.bmp
 measure "1 000 000 mesh triangles (a 36 MB OBJ), 64 x 64" render mesh1m.txt --size 64 -o s.bmp
