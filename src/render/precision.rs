@@ -13,10 +13,10 @@
 //! coordinates (the sphere test squares lengths, the watertight triangle test takes
 //! products of three), so beyond it they overflow f32 and miss, and the BVH clamps
 //! every bound at [`BOUNDS_LIMIT`](crate::geometry::BOUNDS_LIMIT) = 2⁴⁴. An object
-//! reaching past the range is named too: a sphere of radius 2e19 around the camera (its
-//! squared radius is infinite in f32) rendered as the floor alone, a sphere of radius
-//! 9e14 at 1e15 (bounds clamped to a sliver) and a triangle at 8e12 (its scaled
-//! distance overflows) vanished, all without a word.
+//! reaching past the range is named too: on the f32 paths a sphere of radius 2e19
+//! around the camera (its squared radius is infinite in f32) leaves only the floor, a
+//! sphere of radius 9e14 at 1e15 (its bounds clamped to a sliver) and a triangle at
+//! 8e12 (its scaled distance overflows) vanish.
 
 use glam::Vec3;
 
