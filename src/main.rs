@@ -10,7 +10,9 @@ use glam::DVec3;
 use octaray::output::{check_output, check_output_dir, write_image, write_next_output};
 use octaray::render::RenderSettings;
 use octaray::render::profile::Profile;
-use octaray::scene::parse::{MAX_PIXELS, Parsed, parse_scene, parse_scene_file};
+use octaray::scene::parse::{
+    MAX_PIXELS, Parsed, parse_scene, parse_scene_file, parse_scene_reader,
+};
 use octaray::scene::{Camera, Scene};
 use octaray::viewer;
 
@@ -120,7 +122,8 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
 
 #[derive(Args, Debug)]
 struct ViewArgs {
-    /// Scene file; without it, the assignment's given scene built into the binary.
+    /// Scene file (`-`: standard input); without it, the assignment's given scene
+    /// built into the binary.
     scene: Option<PathBuf>,
     /// Render profile for the window and captures: a name (reference, accurate, fast,
     /// preview; looked up in ./profiles/, else built in) or a path to a .toml file.
@@ -144,7 +147,8 @@ struct ViewArgs {
 
 #[derive(Args, Debug, Default)]
 struct RenderArgs {
-    /// Scene file; without it, the assignment's given scene built into the binary.
+    /// Scene file (`-`: standard input); without it, the assignment's given scene
+    /// built into the binary.
     scene: Option<PathBuf>,
     /// Output file (.bmp or .png, replaced atomically); default: the next free Output_1N.bmp.
     #[arg(short, long)]
@@ -242,6 +246,11 @@ impl Failure {
 
 fn load(path: Option<&Path>) -> Result<(Parsed, String), Failure> {
     let (parsed, name) = match path {
+        // `-`: standard input
+        Some(p) if p.as_os_str() == "-" => (
+            parse_scene_reader(std::io::stdin().lock(), "<stdin>"),
+            "<stdin>".to_string(),
+        ),
         Some(p) => (parse_scene_file(p), p.display().to_string()),
         None => (
             parse_scene(Scene::GIVEN, "<built-in given scene>"),
@@ -330,6 +339,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         progress: true,
     };
     let profile = load_profile("--profile", &args.profile)?;
+    warn_caustic_pairs(&scene, &profile);
     let start = std::time::Instant::now();
     let prepared = profile.prepare(&scene, settings.camera.eye);
     let rendered = prepared.render(&settings);
@@ -364,6 +374,13 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The warning where a scene has more light-glass pairs than caustic photons.
+fn warn_caustic_pairs(scene: &Scene, profile: &Profile) {
+    if let Some(w) = octaray::render::caustic::pairs_warning(scene, profile.photons) {
+        say!("{w}");
+    }
+}
+
 /// The warning where the packet path's f32 loses the scene's smallest object (issue 5:
 /// where the fast path cannot hold, say so and name the profile that does).
 fn warn_f32_detail(scene: &octaray::scene::Scene, prepared: &octaray::render::prepared::Prepared) {
@@ -383,6 +400,7 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         None => viewer::default_profile_name(),
     };
     let profile = load_profile("--profile", profile_name)?;
+    warn_caustic_pairs(&parsed.scene, &profile);
     if let Some(frames) = args.frames {
         let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames);
         out!("{name}: {report}");

@@ -300,8 +300,14 @@ impl GatherSoa {
                 p.power.y,
                 p.power.z,
             ];
-            for (c, v) in cols.iter_mut().zip(vals) {
-                c.push(v as f32);
+            for (k, (c, v)) in cols.iter_mut().zip(vals).enumerate() {
+                // a power beyond f32's range saturates: infinity times the zero weight
+                // of a photon outside the radius would make the whole estimate NaN
+                c.push(if k >= 9 {
+                    (v as f32).min(f32::MAX)
+                } else {
+                    v as f32
+                });
             }
         }
         // padding never counts: infinitely far away
@@ -422,7 +428,18 @@ struct Emitter {
     spot: Option<(DVec3, f64)>,
 }
 
-fn emitters(scene: &Scene) -> Vec<Emitter> {
+impl Emitter {
+    /// The power the pair can send, in units of `unit` (see [`power_unit`]): the light's
+    /// largest channel times the solid angle sampled.
+    fn power(&self, unit: f64) -> f64 {
+        self.color.max_element() / unit * self.sample.solid_angle()
+    }
+}
+
+/// Every (light, glass object) pair that can exchange light, in a fixed order (lights
+/// as listed, point lights first; objects as listed), without holding them: a scene
+/// may have as many pairs as lights times glass objects.
+fn for_each_emitter(scene: &Scene, mut f: impl FnMut(Emitter)) {
     let lights = scene
         .point_lights
         .iter()
@@ -433,7 +450,6 @@ fn emitters(scene: &Scene) -> Vec<Emitter> {
                 .iter()
                 .map(|s| (s.position, s.color, Some((s.direction, s.cutoff_deg)))),
         );
-    let mut out = Vec::new();
     for (position, color, spot) in lights {
         if color.max_element() <= 0.0 {
             continue;
@@ -476,7 +492,7 @@ fn emitters(scene: &Scene) -> Vec<Emitter> {
                     }
                 }
             };
-            out.push(Emitter {
+            f(Emitter {
                 position,
                 color,
                 sample,
@@ -485,7 +501,55 @@ fn emitters(scene: &Scene) -> Vec<Emitter> {
             });
         }
     }
-    out
+}
+
+/// Most photons a caustic pass emits, whatever [`CausticSettings::photons`] asks (the
+/// profiles' limit): about 1.5 GB of photon map.
+pub const MAX_PHOTONS: u32 = 10_000_000;
+
+/// The (light, glass object) pairs of `scene` that can exchange light, and their
+/// total power in units of [`power_unit`].
+fn pairs(scene: &Scene) -> (u64, f64) {
+    let unit = power_unit(scene);
+    let (mut n, mut total) = (0u64, 0.0);
+    for_each_emitter(scene, |e| {
+        n += 1;
+        total += e.power(unit);
+    });
+    (n, total)
+}
+
+/// The largest power of two at most the brightest light's largest channel (1 where
+/// there is none): powers are computed in this unit so that a light of any finite
+/// colour cannot overflow them. Dividing by a power of two is exact, so every
+/// photon count is the one computed without the unit wherever that did not overflow.
+fn power_unit(scene: &Scene) -> f64 {
+    let brightest = scene
+        .point_lights
+        .iter()
+        .map(|l| l.color.max_element())
+        .chain(scene.spot_lights.iter().map(|l| l.color.max_element()))
+        .fold(0.0, f64::max);
+    // (the exponent bits alone: the power of two at or below a normal number)
+    let unit = f64::from_bits(brightest.to_bits() & 0x7FF0_0000_0000_0000);
+    if unit.is_normal() { unit } else { 1.0 }
+}
+
+/// Where a scene has more (light, glass object) pairs than `photons`, the pass gives
+/// no photon to a pair whose share rounds to zero (below it, every pair has at least
+/// one): the warning that says so, with the counts.
+pub fn pairs_warning(scene: &Scene, photons: u32) -> Option<String> {
+    let photons = photons.min(MAX_PHOTONS);
+    if photons == 0 || !scene.has_prisms() {
+        return None;
+    }
+    let (n, _) = pairs(scene);
+    (n > u64::from(photons)).then(|| {
+        format!(
+            "octaray: warning: {n} light-glass pairs share {photons} caustic photons: \
+             pairs whose share is below half a photon send no caustic light"
+        )
+    })
 }
 
 /// Point `k` of the additive-recurrence (R2) low-discrepancy sequence of 2D (Roberts
@@ -505,8 +569,12 @@ impl CausticMap {
         tracer: &dyn PhotonTracer,
     ) -> Option<CausticMap> {
         let start = Instant::now();
-        let emitters = emitters(scene);
-        if emitters.is_empty() || settings.photons == 0 {
+        let photons = settings.photons.min(MAX_PHOTONS);
+        if photons == 0 {
+            return None;
+        }
+        let (n_pairs, total) = pairs(scene);
+        if n_pairs == 0 {
             return None;
         }
         let radius = settings.radius.unwrap_or_else(|| {
@@ -522,16 +590,23 @@ impl CausticMap {
             return None;
         }
         // photons in proportion to the power each pair can send (max channel × solid
-        // angle sampled), so every photon carries about the same power
-        let power: Vec<f64> = emitters
-            .iter()
-            .map(|e| e.color.max_element() * e.sample.solid_angle())
-            .collect();
-        let total: f64 = power.iter().sum();
-        let counts: Vec<u64> = power
-            .iter()
-            .map(|p| ((settings.photons as f64 * p / total).round() as u64).max(1))
-            .collect();
+        // angle sampled), so every photon carries about the same power: each pair its
+        // share rounded (at most `photons`, the share being at most 1), and at least
+        // one while there are no more pairs than photons (at most doubling the work);
+        // so at most 2 · photons pairs emit, whatever the number of pairs
+        let unit = power_unit(scene);
+        let floor = u64::from(n_pairs <= u64::from(photons));
+        let mut emitters: Vec<(u64, Emitter)> = Vec::new();
+        let mut counts: Vec<u64> = Vec::new();
+        let mut pair = 0;
+        for_each_emitter(scene, |e| {
+            let n = ((photons as f64 * e.power(unit) / total).round() as u64).max(floor);
+            if n > 0 {
+                emitters.push((pair, e));
+                counts.push(n);
+            }
+            pair += 1;
+        });
         const BLOCK: u64 = 4096;
         let mut jobs = Vec::new();
         for (e, &n) in counts.iter().enumerate() {
@@ -541,13 +616,14 @@ impl CausticMap {
                 k += BLOCK;
             }
         }
-        let job = |&(e, k0, k1): &(usize, u64, u64)| {
+        let job = |&(i, k0, k1): &(usize, u64, u64)| {
             let mut out = Vec::new();
             let mut rays = 0;
-            let em = &emitters[e];
-            let per_emitter = counts[e];
+            // (random numbers are keyed by the pair's index among all pairs)
+            let (e, em) = (emitters[i].0, &emitters[i].1);
+            let per_emitter = counts[i];
             let shift = {
-                let h = |i: u64| unit_from_hash(hash_keys(&[settings.seed, e as u64, i]));
+                let h = |i: u64| unit_from_hash(hash_keys(&[settings.seed, e, i]));
                 [h(1), h(2)]
             };
             for k in k0..k1 {
@@ -564,7 +640,7 @@ impl CausticMap {
                 }
                 // the wavelength is independent of the direction (a hash, not a
                 // second low-discrepancy axis that could correlate with it)
-                let key = hash_keys(&[settings.seed, e as u64, k, 0xC0FF_EE00]);
+                let key = hash_keys(&[settings.seed, e, k, 0xC0FF_EE00]);
                 let lambda = LAMBDA_MIN_NM + unit_from_hash(key) * (LAMBDA_MAX_NM - LAMBDA_MIN_NM);
                 let power = em.color * spectral_weight(lambda) * em.sample.solid_angle()
                     / per_emitter as f64;

@@ -14,6 +14,8 @@ use std::path::Path;
 use serde::Deserialize;
 
 pub use super::options::{PacketOptions, RayOffset, TriangleTest};
+use crate::scene::parse::MAX_RECURSION_LEVEL;
+use crate::scene::text::escaped;
 
 /// Which renderer traces the frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -63,89 +65,11 @@ pub struct Profile {
     pub packet: PacketOptions,
 }
 
-/// `samples_per_pixel`: a square from 1 to 64.
-#[derive(Deserialize)]
-#[serde(try_from = "u32")]
-struct Spp(u32);
-
-impl TryFrom<u32> for Spp {
-    type Error = String;
-    fn try_from(n: u32) -> Result<Self, String> {
-        let root = (1..=8).find(|r| r * r == n);
-        root.map(|_| Spp(n)).ok_or_else(|| {
-            format!("{n}: expected a square number of samples from 1 to 64 (1, 4, 9, 16, ...)")
-        })
-    }
-}
-
-/// `resolution_scale`: in [1/16, 1].
-#[derive(Deserialize)]
-#[serde(try_from = "f64")]
-struct Scale(f64);
-
-impl TryFrom<f64> for Scale {
-    type Error = String;
-    fn try_from(s: f64) -> Result<Self, String> {
-        if (1.0 / 16.0..=1.0).contains(&s) {
-            Ok(Scale(s))
-        } else {
-            Err(format!("{s}: expected a scale from 0.0625 to 1"))
-        }
-    }
-}
-
-/// `single_ray_lanes`: 0 to 8.
-#[derive(Deserialize)]
-#[serde(try_from = "u32")]
-struct Lanes(u32);
-
-impl TryFrom<u32> for Lanes {
-    type Error = String;
-    fn try_from(n: u32) -> Result<Self, String> {
-        if n <= 8 {
-            Ok(Lanes(n))
-        } else {
-            Err(format!("{n}: expected 0 to 8 lanes"))
-        }
-    }
-}
-
-/// `photons`: 0 to 10 million.
-#[derive(Deserialize)]
-#[serde(try_from = "u32")]
-struct Photons(u32);
-
-impl TryFrom<u32> for Photons {
-    type Error = String;
-    fn try_from(n: u32) -> Result<Self, String> {
-        if n <= 10_000_000 {
-            Ok(Photons(n))
-        } else {
-            Err(format!("{n}: expected at most 10000000 photons"))
-        }
-    }
-}
-
-/// The file format: every key optional, defaults as documented in `profiles/*.toml`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ProfileFile {
-    path: Option<RenderPath>,
-    samples_per_pixel: Option<Spp>,
-    resolution_scale: Option<Scale>,
-    max_recursion: Option<u32>,
-    photons: Option<Photons>,
-    single_ray_lanes: Option<Lanes>,
-    triangle_test: Option<TriangleTest>,
-    ray_offset: Option<RayOffset>,
-    shadow_any_hit: Option<bool>,
-}
-
 /// Why a profile could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
     /// Bad TOML, an unknown key or a bad value, at `file:line:column`.
-    #[error("{file}:{line}:{column}: {}{message}", key.as_ref().map_or(String::new(), |k| format!("key `{k}`: ")))]
+    #[error("{file}:{line}:{column}: {}{message}", key_prefix(key.as_deref()))]
     Syntax {
         file: String,
         line: usize,
@@ -221,26 +145,104 @@ impl Profile {
 
     /// Parses profile `name` from TOML `text`; `file` names it in errors.
     pub fn from_toml(name: &str, text: &str, file: &str) -> Result<Profile, ProfileError> {
-        let f: ProfileFile = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
-        Ok(Profile {
+        let table = toml::de::DeTable::parse(text).map_err(|e| syntax_error(text, file, &e))?;
+        let mut p = Profile {
             name: name.to_string(),
-            path: f.path.unwrap_or(RenderPath::Packet),
-            samples_per_pixel: f.samples_per_pixel.map_or(1, |s| s.0),
-            resolution_scale: f.resolution_scale.map_or(1.0, |s| s.0),
-            max_recursion: f.max_recursion.filter(|&m| m > 0),
-            photons: f
-                .photons
-                .map_or(super::caustic::CausticSettings::default().photons, |p| p.0),
-            packet: {
-                let d = PacketOptions::default();
-                PacketOptions {
-                    single_ray_lanes: f.single_ray_lanes.map_or(d.single_ray_lanes, |l| l.0),
-                    triangle_test: f.triangle_test.unwrap_or(d.triangle_test),
-                    ray_offset: f.ray_offset.unwrap_or(d.ray_offset),
-                    shadow_any_hit: f.shadow_any_hit.unwrap_or(d.shadow_any_hit),
+            path: RenderPath::Packet,
+            samples_per_pixel: 1,
+            resolution_scale: 1.0,
+            max_recursion: None,
+            photons: super::caustic::CausticSettings::default().photons,
+            packet: PacketOptions::default(),
+        };
+        for (key, value) in table.get_ref().iter() {
+            let key_span = key.span();
+            let key: &str = key.get_ref();
+            let at = |span: std::ops::Range<usize>, message: String| {
+                let (line, column) = line_column(text, span.start);
+                ProfileError::Syntax {
+                    file: file.to_string(),
+                    line,
+                    column,
+                    key: Some(key.to_string()),
+                    message,
                 }
-            },
-        })
+            };
+            let span = value.span();
+            // the value as written, for "found ..."
+            let found = || escaped(text.get(span.clone()).unwrap_or("")).to_string();
+            let value = value.get_ref();
+            let bad = |expected: &str| {
+                at(
+                    span.clone(),
+                    format!("expected {expected}, found {}", found()),
+                )
+            };
+            match key {
+                "path" => {
+                    p.path = match string(value) {
+                        Some("reference") => RenderPath::Reference,
+                        Some("packet") => RenderPath::Packet,
+                        _ => return Err(bad("\"reference\" or \"packet\"")),
+                    }
+                }
+                "samples_per_pixel" => {
+                    p.samples_per_pixel = integer(value, 1, 64)
+                        .filter(|n| (1..=8).any(|r| r * r == *n))
+                        .ok_or_else(|| {
+                            bad("a square number of samples from 1 to 64 (1, 4, 9, 16, 25, 36, 49 or 64)")
+                        })? as u32
+                }
+                "resolution_scale" => {
+                    p.resolution_scale = number(value)
+                        .filter(|s| (1.0 / 16.0..=1.0).contains(s))
+                        .ok_or_else(|| bad("a number from 0.0625 to 1"))?
+                }
+                "max_recursion" => {
+                    let cap = integer(value, 0, MAX_RECURSION_LEVEL).ok_or_else(|| {
+                        bad(&format!(
+                            "an integer from 0 (the scene's own level) to {MAX_RECURSION_LEVEL}"
+                        ))
+                    })?;
+                    p.max_recursion = (cap > 0).then_some(cap as u32);
+                }
+                "photons" => {
+                    let max = super::caustic::MAX_PHOTONS;
+                    p.photons = integer(value, 0, max.into())
+                        .ok_or_else(|| bad(&format!("an integer from 0 to {max}")))?
+                        as u32
+                }
+                "single_ray_lanes" => {
+                    p.packet.single_ray_lanes = integer(value, 0, 8)
+                        .ok_or_else(|| bad("an integer from 0 to 8"))? as u32
+                }
+                "triangle_test" => {
+                    p.packet.triangle_test = match string(value) {
+                        Some("watertight") => TriangleTest::Watertight,
+                        Some("moller") => TriangleTest::Moller,
+                        _ => return Err(bad("\"watertight\" or \"moller\"")),
+                    }
+                }
+                "ray_offset" => {
+                    p.packet.ray_offset = string(value)
+                        .and_then(|s| RayOffset::try_from(s.to_string()).ok())
+                        .ok_or_else(|| {
+                            bad("\"error_bound\" or \"epsilon:<value>\" with a finite value > 0")
+                        })?
+                }
+                "shadow_any_hit" => {
+                    p.packet.shadow_any_hit = match value {
+                        toml::de::DeValue::Boolean(b) => *b,
+                        _ => return Err(bad("true or false")),
+                    }
+                }
+                _ => {
+                    let message = format!("unknown key; the keys are {}", KEYS.join(", "));
+                    return Err(at(key_span, message));
+                }
+            }
+        }
+        Ok(p)
     }
 
     /// Sub-pixel grid side: `samples_per_pixel` = n².
@@ -251,23 +253,88 @@ impl Profile {
     }
 }
 
-/// A TOML error as `file:line:column`, with the key on that line.
+/// `key `photons`: ` before a message (the key escaped; an empty key said so).
+fn key_prefix(key: Option<&str>) -> String {
+    match key {
+        None => String::new(),
+        Some("") => "an empty key: ".to_string(),
+        Some(k) => format!("key `{}`: ", escaped(k)),
+    }
+}
+
+/// The keys of a profile file, in the order of `profiles/*.toml`.
+const KEYS: [&str; 9] = [
+    "path",
+    "samples_per_pixel",
+    "resolution_scale",
+    "max_recursion",
+    "photons",
+    "single_ray_lanes",
+    "triangle_test",
+    "ray_offset",
+    "shadow_any_hit",
+];
+
+/// A string value.
+fn string<'a>(v: &'a toml::de::DeValue<'_>) -> Option<&'a str> {
+    match v {
+        toml::de::DeValue::String(s) => Some(s),
+        _ => None,
+    }
+}
+
+/// An integer value in `lo..=hi` (any base TOML allows).
+fn integer(v: &toml::de::DeValue<'_>, lo: i64, hi: i64) -> Option<i64> {
+    match v {
+        toml::de::DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix())
+            .ok()
+            .filter(|n| (lo..=hi).contains(n)),
+        _ => None,
+    }
+}
+
+/// A number value, integer or float.
+fn number(v: &toml::de::DeValue<'_>) -> Option<f64> {
+    match v {
+        toml::de::DeValue::Float(f) => f.as_str().parse().ok(),
+        toml::de::DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix())
+            .ok()
+            .map(|n| n as f64),
+        _ => None,
+    }
+}
+
+/// 1-based line and column (in characters) of byte `at` of `text`.
+fn line_column(text: &str, at: usize) -> (usize, usize) {
+    let before = text.get(..at.min(text.len())).unwrap_or(text);
+    let line_start = before.rfind(['\n', '\r']).map_or(0, |i| i + 1);
+    let line = crate::scene::text::lines(before).count().max(1)
+        + usize::from(before.ends_with(['\n', '\r']));
+    (line, before[line_start..].chars().count() + 1)
+}
+
+/// A TOML syntax error as `file:line:column`, with the key on that line; a key set
+/// twice is said so.
 fn syntax_error(text: &str, file: &str, e: &toml::de::Error) -> ProfileError {
     let start = e.span().map_or(0, |s| s.start).min(text.len());
-    let before = &text[..start];
-    let line = before.matches('\n').count() + 1;
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = before[line_start..].chars().count() + 1;
-    let line_text = text[line_start..].lines().next().unwrap_or("");
+    let (line, column) = line_column(text, start);
+    let line_start = text[..start].rfind(['\n', '\r']).map_or(0, |i| i + 1);
+    let line_text = crate::scene::text::lines(&text[line_start..])
+        .next()
+        .unwrap_or("");
     let key = line_text
         .split_once('=')
-        .map(|(k, _)| k.trim().trim_matches('"').to_string())
+        .map(|(k, _)| k.trim().trim_matches(['"', '\'']).to_string())
         .filter(|k| !k.is_empty() && !k.starts_with('#') && !k.starts_with('['));
+    let message = match e.message().trim() {
+        "duplicate key" => "set twice".to_string(),
+        m => m.to_string(),
+    };
     ProfileError::Syntax {
         file: file.to_string(),
         line,
         column,
         key,
-        message: e.message().trim().to_string(),
+        message,
     }
 }

@@ -5,52 +5,15 @@
 //! acceleration structures from it. Nothing here knows about rendering.
 
 pub mod camera;
+pub mod input;
 pub mod obj;
 pub mod parse;
+pub mod text;
 
 use glam::DVec3;
 
-/// Reads a whole input file (scene, mesh, profile): a regular file or a pipe
-/// (`/dev/stdin`, `<(generator)`), at most [`MAX_INPUT`] bytes. Directories and
-/// devices are refused before they are opened (/dev/zero filled gigabytes within
-/// seconds: found by fuzzing).
-pub fn read_input(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
-    use std::io::Read;
-    let kind = std::fs::metadata(path)?.file_type();
-    #[cfg(unix)]
-    let device = {
-        use std::os::unix::fs::FileTypeExt;
-        kind.is_char_device() || kind.is_block_device()
-    };
-    #[cfg(not(unix))]
-    let device = false;
-    let refused = if kind.is_dir() {
-        Some("a directory")
-    } else if device {
-        Some("a device, not a file")
-    } else {
-        None
-    };
-    if let Some(what) = refused {
-        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, what));
-    }
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)?
-        .take(MAX_INPUT + 1)
-        .read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > MAX_INPUT {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "larger than 4 GiB",
-        ));
-    }
-    Ok(bytes)
-}
-
-/// The largest input file [`read_input`] reads: 4 GiB.
-pub const MAX_INPUT: u64 = 4 << 30;
-
 pub use camera::Camera;
+pub use input::{MAX_INPUT, read_input};
 pub use parse::{ParseError, parse_scene, parse_scene_file};
 
 /// Surface parameters shared by every object kind (the assignment's `color`,

@@ -266,7 +266,7 @@ impl Part {
                         .next()
                         .ok_or_else(|| format!("v: expected 3 coordinates, found {k}"))?;
                     *out = parse_f64(tok).filter(|v| v.is_finite()).ok_or_else(|| {
-                        format!("v: '{}' is not a finite number", tok.escape_debug())
+                        format!("v: '{}' is not a finite number", super::text::escaped(tok))
                     })?;
                 }
                 self.vertices.push(DVec3::from(c));
@@ -279,7 +279,7 @@ impl Part {
                         None => tok,
                     };
                     let i = parse_index(idx).ok_or_else(|| {
-                        format!("f: '{}' is not a vertex index", tok.escape_debug())
+                        format!("f: '{}' is not a vertex index", super::text::escaped(tok))
                     })?;
                     self.corner(i)?;
                 }
@@ -692,7 +692,7 @@ mod tests {
                             .ok_or_else(|| {
                                 err(format!(
                                     "v: '{}' is not a finite number",
-                                    tok.escape_debug()
+                                    crate::scene::text::escaped(tok)
                                 ))
                             })?;
                     }
@@ -703,7 +703,7 @@ mod tests {
                     for tok in it {
                         let idx = tok.split('/').next().unwrap_or("");
                         let i: i64 = idx.parse().map_err(|_| {
-                            err(format!("f: '{}' is not a vertex index", tok.escape_debug()))
+                            err(format!("f: '{}' is not a vertex index", crate::scene::text::escaped(tok)))
                         })?;
                         let nv = vertices.len() as i64;
                         let abs = if i > 0 { i - 1 } else { nv + i };

@@ -3,13 +3,17 @@
 //! The format (see `docs/scene-format.md`): whitespace-separated tokens read by counts,
 //! line breaks carry no meaning, `//` comments run to the end of the line, keywords are
 //! case-insensitive. Every number must be finite; every count an integer in range.
-//! The spotlight block is optional; everything after it is ignored.
+//! The spotlight block is optional; everything after it is ignored (read, not kept).
+//! Lines end as [`super::text`] rules; tokens quoted in messages are escaped there.
 
 use std::fmt;
+use std::io::Read;
 use std::path::Path;
 
 use glam::DVec3;
 
+use super::input::Limited;
+use super::text::{Position, escaped};
 use super::{Glass, Material, Object, PointLight, Quadric, Scene, Shape, SpotLight};
 
 /// Largest accepted `recursion_level` (level N gives N − 1 bounces; deeper is pointless).
@@ -20,12 +24,18 @@ pub const MAX_RECURSION_LEVEL: i64 = 1_000_000;
 pub const MAX_PIXELS: i64 = 16_384;
 /// Largest accepted object or light count.
 pub const MAX_COUNT: i64 = 50_000_000;
+/// Most triangles a scene may hold, triangle objects, prism faces (8 a prism) and mesh
+/// triangles together: the packet path numbers its triangles in
+/// [`INDEX_BITS`](crate::geometry::INDEX_BITS) = 28 bits, and a 4 GiB OBJ file of fan
+/// polygons can describe two billion.
+pub const MAX_TRIANGLES: u64 = (1 << crate::geometry::INDEX_BITS) - 1;
 
-/// A rejected scene file: `file:line:col: field: message`.
+/// A rejected scene file: `file:line:col: field: message`, or `file: field: message`
+/// where there is no position (a file that cannot be read).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ParseError {
     pub file: String,
-    /// 1-based.
+    /// 1-based; 0: no position.
     pub line: usize,
     /// 1-based, in characters.
     pub col: usize,
@@ -36,6 +46,9 @@ pub struct ParseError {
 
 impl fmt::Display for ParseError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            return write!(f, "{}: {}: {}", self.file, self.field, self.message);
+        }
         write!(
             f,
             "{}:{}:{}: {}: {}",
@@ -57,65 +70,67 @@ pub struct Parsed {
     pub too_large: Option<ParseError>,
 }
 
-/// Reads and parses a scene file.
+/// Reads and parses a scene file (see [`parse_scene_reader`]).
 pub fn parse_scene_file(path: &Path) -> Result<Parsed, ParseError> {
     let name = path.display().to_string();
-    let bytes = super::read_input(path).map_err(|e| ParseError {
-        file: name.clone(),
+    let file = super::input::open_input(path).map_err(|e| unreadable(&name, &e))?;
+    parse_scene_reader(file, &name)
+}
+
+/// The error of an input that cannot be read: no position, the file is the field.
+fn unreadable(file: &str, e: &std::io::Error) -> ParseError {
+    ParseError {
+        file: file.into(),
         line: 0,
         col: 0,
         field: "file".into(),
         message: format!("cannot read: {e}"),
-    })?;
-    parse_scene_bytes(&bytes, &name)
-}
-
-/// Parses scene bytes; rejects binary data and invalid UTF-8 with their position.
-pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError> {
-    // Bytes that are not UTF-8 text (a cp1252 degree sign, a NUL) may sit in a comment
-    // or in the ignored rest of the file: they are read as U+FFFD and only matter if the
-    // scene needs the token they are in. A file that fails before its first such byte
-    // fails as usual; one that fails at or after it (a binary file fails at once) is
-    // reported as not a text scene file, at that byte.
-    let text = String::from_utf8_lossy(bytes);
-    let (valid, invalid_at) = match std::str::from_utf8(bytes) {
-        Ok(t) => (t, None),
-        Err(e) => {
-            let n = e.valid_up_to();
-            // (the first n bytes are valid UTF-8, as from_utf8 reports)
-            (std::str::from_utf8(&bytes[..n]).unwrap_or(""), Some(n))
-        }
-    };
-    let control = valid.find(|c: char| c == '\0' || (c.is_control() && !c.is_whitespace()));
-    let first_bad = control.or(invalid_at);
-    let parsed = parse_scene(&text, file);
-    let (Err(e), Some(bad)) = (&parsed, first_bad) else {
-        return parsed;
-    };
-    // (lines counted as the tokenizer counts them: LF, CRLF or a lone CR)
-    let prefix = String::from_utf8_lossy(&bytes[..bad])
-        .replace("\r\n", "\n")
-        .replace('\r', "\n");
-    let line = prefix.matches('\n').count() + 1;
-    let col = prefix.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    if (e.line, e.col) < (line, col) {
-        return parsed;
     }
-    Err(ParseError {
-        file: file.into(),
-        line,
-        col,
-        field: "file".into(),
-        message: format!("not a text scene file (binary or non-UTF-8 byte at offset {bad})"),
-    })
 }
 
-/// Parses scene text. `file` is only used in messages.
+/// Parses scene bytes (see [`parse_scene_reader`]).
+pub fn parse_scene_bytes(bytes: &[u8], file: &str) -> Result<Parsed, ParseError> {
+    parse_scene_reader(bytes, file)
+}
+
+/// Parses scene text (see [`parse_scene_reader`]).
 pub fn parse_scene(text: &str, file: &str) -> Result<Parsed, ParseError> {
-    // a byte-order mark, as some editors write, is not part of the first number
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut r = Reader::new(text, file);
-    let scene = r.scene()?;
+    parse_scene_reader(text.as_bytes(), file)
+}
+
+/// Parses a scene from a stream (a file, a pipe, standard input), read to its end, at
+/// most [`MAX_INPUT`](super::input::MAX_INPUT) bytes; `file` names it in messages and
+/// mesh paths are relative to its directory.
+///
+/// The stream is read a token at a time: memory holds the scene and one token (at
+/// most [`MAX_TOKEN`] bytes), never the file, so the ignored rest of a file costs
+/// only the time to read it. Bytes that are not UTF-8 text (a cp1252 degree sign, a
+/// NUL) may sit in a comment or in the ignored rest of the file: they are read as
+/// U+FFFD and only matter if the scene needs the token they are in. A file that fails
+/// before its first such byte fails as usual; one that fails at or after it (a binary
+/// file fails at once) is reported as not a text scene file, at that byte.
+pub fn parse_scene_reader(input: impl Read, file: &str) -> Result<Parsed, ParseError> {
+    read_scene(input, file, MAX_TRIANGLES)
+}
+
+/// [`parse_scene_reader`] with a triangle limit of its own (tests).
+fn read_scene(input: impl Read, file: &str, max_triangles: u64) -> Result<Parsed, ParseError> {
+    let mut r = Reader {
+        file,
+        tokens: Tokens::new(Limited::new(input)),
+        ahead: None,
+        ahead_text: String::new(),
+        text: String::new(),
+        warnings: Vec::new(),
+        too_large: None,
+        max_triangles,
+    };
+    let scene = match r.scene() {
+        Ok(scene) => scene,
+        Err(e) => return Err(r.tokens.binary_at_or_before(e, file)),
+    };
+    // the ignored rest, read (and counted against the size limit) without being kept
+    r.tokens.drain().map_err(|e| unreadable(file, &e))?;
     Ok(Parsed {
         scene,
         warnings: r.warnings,
@@ -123,88 +138,257 @@ pub fn parse_scene(text: &str, file: &str) -> Result<Parsed, ParseError> {
     })
 }
 
+/// Longest token the scene reader holds: 4 KiB (a path of the longest Linux allows; no
+/// number needs more). A longer token is refused where it is read.
+pub const MAX_TOKEN: usize = 4096;
+
+/// Where a whitespace-separated word of the scene starts, and its length; its text
+/// is in a buffer of the reader (read into the same two buffers, without allocating).
 #[derive(Clone, Copy, Debug)]
-struct Token<'a> {
-    text: &'a str,
+struct Token {
+    /// Its whole length in bytes (the buffer keeps at most [`MAX_TOKEN`]).
+    bytes: usize,
     line: usize,
     col: usize,
 }
 
-fn tokenize(text: &str) -> (Vec<Token<'_>>, (usize, usize)) {
-    let mut tokens = Vec::new();
-    let (mut line, mut col) = (1, 1);
-    let mut start: Option<(usize, usize, usize)> = None;
-    let mut chars = text.char_indices().peekable();
-    while let Some((i, c)) = chars.next() {
-        let comment = c == '/' && matches!(chars.peek(), Some((_, '/')));
-        if c.is_whitespace() || comment {
-            if let Some((s, l, cl)) = start.take() {
-                tokens.push(Token {
-                    text: &text[s..i],
-                    line: l,
-                    col: cl,
-                });
+/// The tokens of a stream, decoded as `String::from_utf8_lossy` would decode it, with
+/// lines counted by [`Position`] and `//` comments skipped.
+struct Tokens<R> {
+    input: R,
+    buf: Box<[u8]>,
+    /// Unread bytes are `buf[start..end]`.
+    start: usize,
+    end: usize,
+    eof: bool,
+    /// Stream offset of `buf[start]`.
+    offset: u64,
+    /// Position of the next character.
+    at: Position,
+    /// Offset, line and column of the first byte that is not text (invalid UTF-8, a NUL
+    /// or another control character that is not whitespace).
+    first_bad: Option<(u64, usize, usize)>,
+}
+
+impl<R: Read> Tokens<R> {
+    fn new(input: R) -> Self {
+        Tokens {
+            input,
+            buf: vec![0; 64 << 10].into_boxed_slice(),
+            start: 0,
+            end: 0,
+            eof: false,
+            offset: 0,
+            at: Position::default(),
+            first_bad: None,
+        }
+    }
+
+    /// Makes at least `n` bytes available unless the stream ends first.
+    #[inline]
+    fn fill(&mut self, n: usize) -> std::io::Result<()> {
+        if self.end - self.start >= n || self.eof {
+            return Ok(());
+        }
+        self.refill(n)
+    }
+
+    #[inline(never)]
+    fn refill(&mut self, n: usize) -> std::io::Result<()> {
+        while self.end - self.start < n && !self.eof {
+            if self.start > 0 {
+                self.buf.copy_within(self.start..self.end, 0);
+                self.end -= self.start;
+                self.start = 0;
             }
-            if comment {
-                // Skip to the end of the line; the newline itself is handled below.
-                while let Some(&(_, n)) = chars.peek() {
-                    if n == '\n' || n == '\r' {
-                        break;
+            match self.input.read(&mut self.buf[self.end..]) {
+                Ok(0) => self.eof = true,
+                Ok(k) => self.end += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+
+    /// The next character, its length in bytes and whether it is not text, unread;
+    /// `None` at the end of the stream.
+    fn peek(&mut self) -> std::io::Result<Option<(char, usize, bool)>> {
+        self.fill(4)?;
+        let bytes = &self.buf[self.start..self.end];
+        let Some(&b) = bytes.first() else {
+            return Ok(None);
+        };
+        let control = |c: char| c == '\0' || (c.is_control() && !c.is_whitespace());
+        if b < 0x80 {
+            let c = char::from(b);
+            return Ok(Some((c, 1, control(c))));
+        }
+        let width = match b {
+            0xC2..=0xDF => 2,
+            0xE0..=0xEF => 3,
+            0xF0..=0xF4 => 4,
+            _ => 1,
+        };
+        let seq = &bytes[..width.min(bytes.len())];
+        Ok(Some(match std::str::from_utf8(seq) {
+            Ok(s) => {
+                let c = s.chars().next().expect("one character");
+                (c, width, control(c))
+            }
+            // a maximal invalid sequence, or an incomplete one at the end of the
+            // stream, is one U+FFFD (as from_utf8_lossy has it)
+            Err(e) => (
+                char::REPLACEMENT_CHARACTER,
+                e.error_len().unwrap_or(seq.len()),
+                true,
+            ),
+        }))
+    }
+
+    /// Moves past a character [`Tokens::peek`] returned.
+    fn bump(&mut self, (c, len, bad): (char, usize, bool)) {
+        if bad && self.first_bad.is_none() {
+            self.first_bad = Some((self.offset, self.at.line, self.at.col));
+        }
+        self.start += len;
+        self.offset += len as u64;
+        self.at.advance(c);
+    }
+
+    /// Whether a `//` comment starts here.
+    fn at_comment(&mut self) -> std::io::Result<bool> {
+        self.fill(2)?;
+        Ok(self.buf[self.start..self.end].starts_with(b"//"))
+    }
+
+    /// The next token, its text into `text`; `None` at the end of the stream.
+    fn next_token(&mut self, text: &mut String) -> std::io::Result<Option<Token>> {
+        text.clear();
+        if self.offset == 0 {
+            // a byte-order mark, as some editors write, is not part of the first number
+            self.fill(3)?;
+            if self.buf[self.start..self.end].starts_with("\u{feff}".as_bytes()) {
+                self.start += 3;
+                self.offset += 3;
+            }
+        }
+        // whitespace and comments
+        loop {
+            self.fill(2)?;
+            let rest = &self.buf[self.start..self.end];
+            match rest.first() {
+                None => return Ok(None),
+                Some(b'/') if rest.get(1) == Some(&b'/') => {
+                    while let Some(ch) = self.peek()? {
+                        if Position::is_line_end(ch.0) {
+                            break;
+                        }
+                        self.bump(ch);
                     }
-                    chars.next();
                 }
+                Some(&b) if b < 0x80 && !char::from(b).is_whitespace() => break,
+                // a run of ASCII whitespace at once
+                Some(&b) if b < 0x80 => {
+                    let run = rest
+                        .iter()
+                        .position(|&b| b >= 0x80 || !char::from(b).is_whitespace())
+                        .unwrap_or(rest.len());
+                    for &b in &rest[..run] {
+                        self.at.advance(char::from(b));
+                    }
+                    self.start += run;
+                    self.offset += run as u64;
+                }
+                Some(_) => match self.peek()? {
+                    Some(ch) if ch.0.is_whitespace() => self.bump(ch),
+                    _ => break,
+                },
+            }
+        }
+        let mut t = Token {
+            bytes: 0,
+            line: self.at.line,
+            col: self.at.col,
+        };
+        loop {
+            self.fill(2)?;
+            // a run of printable ASCII but '/' at once (the bytes of nearly every token)
+            let rest = &self.buf[self.start..self.end];
+            let run = rest
+                .iter()
+                .position(|&b| !(b'!'..=b'~').contains(&b) || b == b'/')
+                .unwrap_or(rest.len());
+            if run > 0 {
+                let keep = run.min(MAX_TOKEN.saturating_sub(t.bytes));
+                text.extend(rest[..keep].iter().map(|&b| char::from(b)));
+                t.bytes += run;
+                for _ in 0..run {
+                    self.at.advance('x');
+                }
+                self.start += run;
+                self.offset += run as u64;
                 continue;
             }
-            // a line ends at LF, CRLF or a lone CR (old Mac files)
-            let lone_cr = c == '\r' && !matches!(chars.peek(), Some((_, '\n')));
-            if c == '\n' || lone_cr {
-                line += 1;
-                col = 1;
-            } else {
-                col += 1;
+            let Some(ch) = self.peek()? else { break };
+            if ch.0.is_whitespace() || self.at_comment()? {
+                break;
             }
-            continue;
+            if t.bytes + ch.0.len_utf8() <= MAX_TOKEN {
+                text.push(ch.0);
+            }
+            t.bytes += ch.0.len_utf8();
+            self.bump(ch);
         }
-        if start.is_none() {
-            start = Some((i, line, col));
+        Ok(Some(t))
+    }
+
+    /// Reads the rest of the stream without keeping it.
+    fn drain(&mut self) -> std::io::Result<u64> {
+        self.start = self.end;
+        std::io::copy(&mut self.input, &mut std::io::sink())
+    }
+
+    /// `e` as the error of a file that is not text, should it lie at or after the
+    /// first byte that is not text.
+    fn binary_at_or_before(&self, e: ParseError, file: &str) -> ParseError {
+        match self.first_bad {
+            Some((offset, line, col)) if e.line > 0 && (e.line, e.col) >= (line, col) => {
+                ParseError {
+                    file: file.into(),
+                    line,
+                    col,
+                    field: "file".into(),
+                    message: format!(
+                        "not a text scene file (binary or non-UTF-8 byte at offset {offset})"
+                    ),
+                }
+            }
+            _ => e,
         }
-        col += 1;
     }
-    if let Some((s, l, cl)) = start {
-        tokens.push(Token {
-            text: &text[s..],
-            line: l,
-            col: cl,
-        });
-    }
-    (tokens, (line, col))
 }
 
-struct Reader<'a> {
-    file: &'a str,
-    tokens: Vec<Token<'a>>,
-    pos: usize,
-    /// Position just past the last character, for "end of file" errors.
-    end: (usize, usize),
+struct Reader<'f, R> {
+    file: &'f str,
+    tokens: Tokens<Limited<R>>,
+    /// A token read ahead by [`Reader::peek`], and its text.
+    ahead: Option<Token>,
+    ahead_text: String,
+    /// The text of the token [`Reader::next`] returned last.
+    text: String,
     warnings: Vec<String>,
     too_large: Option<ParseError>,
+    /// [`MAX_TRIANGLES`] (lower in tests).
+    max_triangles: u64,
 }
 
-impl<'a> Reader<'a> {
-    fn new(text: &'a str, file: &'a str) -> Self {
-        let (tokens, end) = tokenize(text);
-        Reader {
-            file,
-            tokens,
-            pos: 0,
-            end,
-            warnings: Vec::new(),
-            too_large: None,
-        }
-    }
-
-    fn error_at(&self, at: Option<Token<'_>>, field: &str, message: String) -> ParseError {
-        let (line, col) = at.map_or(self.end, |t| (t.line, t.col));
+impl<R: Read> Reader<'_, R> {
+    /// At `at`, or at the end of the file.
+    fn error_at(&self, at: Option<&Token>, field: &str, message: String) -> ParseError {
+        let (line, col) = at.map_or((self.tokens.at.line, self.tokens.at.col), |t| {
+            (t.line, t.col)
+        });
         ParseError {
             file: self.file.into(),
             line,
@@ -214,21 +398,43 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn warn_at(&mut self, at: Token<'_>, what: String) {
+    fn warn_at(&mut self, at: &Token, what: String) {
         let msg = format!("{}:{}:{}: {}", self.file, at.line, at.col, what);
         self.warnings.push(msg);
     }
 
-    fn peek(&self) -> Option<Token<'a>> {
-        self.tokens.get(self.pos).copied()
+    /// Reads the next token into `ahead`, unless it holds one.
+    fn look_ahead(&mut self) -> Result<(), ParseError> {
+        if self.ahead.is_none() {
+            self.ahead = self
+                .tokens
+                .next_token(&mut self.ahead_text)
+                .map_err(|e| unreadable(self.file, &e))?;
+        }
+        Ok(())
     }
 
-    fn next(&mut self, field: &str, expected: &str) -> Result<Token<'a>, ParseError> {
-        match self.peek() {
-            Some(t) => {
-                self.pos += 1;
-                Ok(t)
+    /// The next token, left unread (its text: `ahead_text`).
+    fn peek(&mut self) -> Result<Option<Token>, ParseError> {
+        self.look_ahead()?;
+        Ok(self.ahead)
+    }
+
+    fn next(&mut self, field: &str, expected: &str) -> Result<Token, ParseError> {
+        self.look_ahead()?;
+        std::mem::swap(&mut self.text, &mut self.ahead_text);
+        match self.ahead.take() {
+            Some(t) if t.bytes > MAX_TOKEN => {
+                let start: String = self.text.chars().take(32).collect();
+                let message = format!(
+                    "expected {expected}, found a token of {} bytes (more than the {MAX_TOKEN} \
+                     a token may have) starting '{}'",
+                    t.bytes,
+                    escaped(&start)
+                );
+                Err(self.error_at(Some(&t), field, message))
             }
+            Some(t) => Ok(t),
             None => Err(self.error_at(
                 None,
                 field,
@@ -238,19 +444,19 @@ impl<'a> Reader<'a> {
     }
 
     /// A finite real number.
-    fn number(&mut self, field: &str) -> Result<(f64, Token<'a>), ParseError> {
+    fn number(&mut self, field: &str) -> Result<(f64, Token), ParseError> {
         let t = self.next(field, "a number")?;
-        match t.text.parse::<f64>() {
+        match self.text.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok((v, t)),
             Ok(_) => Err(self.error_at(
-                Some(t),
+                Some(&t),
                 field,
-                format!("expected a finite number, got '{}'", t.text),
+                format!("expected a finite number, got '{}'", escaped(&self.text)),
             )),
             Err(_) => Err(self.error_at(
-                Some(t),
+                Some(&t),
                 field,
-                format!("expected a number, found '{}'", t.text),
+                format!("expected a number, found '{}'", escaped(&self.text)),
             )),
         }
     }
@@ -258,41 +464,40 @@ impl<'a> Reader<'a> {
     fn number_ge0(&mut self, field: &str) -> Result<f64, ParseError> {
         let (v, t) = self.number(field)?;
         if v < 0.0 {
-            return Err(self.error_at(Some(t), field, format!("must be >= 0, got {}", t.text)));
+            return Err(self.error_at(Some(&t), field, format!("must be >= 0, got {}", self.text)));
         }
         Ok(v)
     }
 
     fn integer(&mut self, field: &str, min: i64, max: i64) -> Result<i64, ParseError> {
         let t = self.next(field, "an integer")?;
-        let v: i64 = match t.text.parse::<i64>() {
+        let v: i64 = match self.text.parse::<i64>() {
             Ok(v) => v,
-            Err(_) if t.text.parse::<f64>().is_ok() || looks_integral(t.text) => {
+            Err(_) if self.text.parse::<f64>().is_ok() || looks_integral(&self.text) => {
                 return Err(self.error_at(
-                    Some(t),
+                    Some(&t),
                     field,
-                    format!("expected an integer in {min}..={max}, got {}", t.text),
+                    format!("expected an integer in {min}..={max}, got {}", self.text),
                 ));
             }
             Err(_) => {
                 return Err(self.error_at(
-                    Some(t),
+                    Some(&t),
                     field,
-                    format!("expected an integer, found '{}'", t.text),
+                    format!("expected an integer, found '{}'", escaped(&self.text)),
                 ));
             }
         };
         if v < min || v > max {
             return Err(self.error_at(
-                Some(t),
+                Some(&t),
                 field,
                 format!("expected an integer in {min}..={max}, got {v}"),
             ));
         }
         Ok(v)
     }
-
-    fn vec3(&mut self, field: &str) -> Result<(DVec3, Token<'a>), ParseError> {
+    fn vec3(&mut self, field: &str) -> Result<(DVec3, Token), ParseError> {
         let (x, t) = self.number(&format!("{field}.x"))?;
         let (y, _) = self.number(&format!("{field}.y"))?;
         let (z, _) = self.number(&format!("{field}.z"))?;
@@ -327,11 +532,11 @@ impl<'a> Reader<'a> {
 
     fn scene(&mut self) -> Result<Scene, ParseError> {
         let recursion_level = self.integer("recursion_level", 0, MAX_RECURSION_LEVEL)? as u32;
-        let at = self.peek();
+        let at = self.peek()?;
         let pixels = self.integer("pixels", 1, u32::MAX.into())? as u32;
         if i64::from(pixels) > MAX_PIXELS {
             self.too_large = Some(self.error_at(
-                at,
+                at.as_ref(),
                 "pixels",
                 format!(
                     "{pixels} is above octaray's limit of {MAX_PIXELS} pixels per side; \
@@ -342,10 +547,11 @@ impl<'a> Reader<'a> {
         let n_objects = self.integer("n_objects", 0, MAX_COUNT)?;
         let mut objects = Vec::new();
         let mut per_kind = [0usize; 5];
+        let mut triangles = 0u64;
         for k in 1..=n_objects {
             let field = format!("object {k}: kind");
             let t = self.next(&field, "an object kind")?;
-            let kind = t.text.to_ascii_lowercase();
+            let kind = self.text.to_ascii_lowercase();
             let idx = match kind.as_str() {
                 "sphere" => 0,
                 "triangle" => 1,
@@ -354,18 +560,18 @@ impl<'a> Reader<'a> {
                 "mesh" => 4,
                 _ => {
                     return Err(self.error_at(
-                        Some(t),
+                        Some(&t),
                         &field,
                         format!(
                             "unknown object kind '{}' (expected sphere, triangle, general, prism or mesh)",
-                            t.text
+                            escaped(&self.text)
                         ),
                     ));
                 }
             };
             per_kind[idx] += 1;
             let who = format!("{kind} {}", per_kind[idx]);
-            let shape = self.shape(&kind, &who, t)?;
+            let shape = self.shape(&kind, &who, &t)?;
             let material = self.material(&who)?;
             let shape = match shape {
                 Shape::Prism { v, .. } => Shape::Prism {
@@ -374,6 +580,23 @@ impl<'a> Reader<'a> {
                 },
                 s => s,
             };
+            triangles += match &shape {
+                Shape::Triangle { .. } => 1,
+                Shape::Prism { .. } => 8,
+                Shape::Mesh(m) => m.triangles.len() as u64,
+                _ => 0,
+            };
+            if triangles > self.max_triangles {
+                return Err(self.error_at(
+                    Some(&t),
+                    &who,
+                    format!(
+                        "the scene's triangles (triangle objects, 8 per prism, mesh triangles) \
+                         pass octaray's limit of {}",
+                        self.max_triangles
+                    ),
+                ));
+            }
             objects.push(Object { shape, material });
         }
 
@@ -387,24 +610,23 @@ impl<'a> Reader<'a> {
         }
 
         let mut spot_lights = Vec::new();
-        match self.peek() {
+        match self.peek()? {
             None => {
                 let msg = "note: the file ends after the point lights: no spotlights".to_string();
-                self.warnings.push(format!(
-                    "{}:{}:{}: {msg}",
-                    self.file, self.end.0, self.end.1
-                ));
+                let end = self.tokens.at;
+                self.warnings
+                    .push(format!("{}:{}:{}: {msg}", self.file, end.line, end.col));
             }
             // (a word such as "Infinity" or "NaN" opening prose is not a count)
             Some(t)
-                if t.text.parse::<f64>().is_err()
-                    || !t.text.bytes().any(|b| b.is_ascii_digit()) =>
+                if self.ahead_text.parse::<f64>().is_err()
+                    || !self.ahead_text.bytes().any(|b| b.is_ascii_digit()) =>
             {
                 let msg = format!(
                     "note: '{}' is not a spotlight count: no spotlights; the rest of the file is ignored",
-                    t.text
+                    escaped(&self.ahead_text)
                 );
-                self.warn_at(t, msg);
+                self.warn_at(&t, msg);
             }
             Some(_) => {
                 let n_spot = self.integer("n_spot_lights", 0, MAX_COUNT)?;
@@ -415,7 +637,7 @@ impl<'a> Reader<'a> {
                     let (direction, dt) = self.vec3(&format!("{who}: direction"))?;
                     let Some(unit) = crate::math::float::unit(direction) else {
                         return Err(self.error_at(
-                            Some(dt),
+                            Some(&dt),
                             &format!("{who}: direction"),
                             "must be a non-zero vector".into(),
                         ));
@@ -424,9 +646,9 @@ impl<'a> Reader<'a> {
                     let (cutoff_deg, ct) = self.number(&field)?;
                     if !(0.0..=180.0).contains(&cutoff_deg) {
                         return Err(self.error_at(
-                            Some(ct),
+                            Some(&ct),
                             &field,
-                            format!("must be in 0..=180 degrees, got {}", ct.text),
+                            format!("must be in 0..=180 degrees, got {}", self.text),
                         ));
                     }
                     spot_lights.push(SpotLight {
@@ -448,7 +670,7 @@ impl<'a> Reader<'a> {
         })
     }
 
-    fn shape(&mut self, kind: &str, who: &str, at: Token<'_>) -> Result<Shape, ParseError> {
+    fn shape(&mut self, kind: &str, who: &str, at: &Token) -> Result<Shape, ParseError> {
         match kind {
             "sphere" => {
                 let (center, _) = self.vec3(&format!("{who}: center"))?;
@@ -456,9 +678,9 @@ impl<'a> Reader<'a> {
                 let (radius, rt) = self.number(&field)?;
                 if radius <= 0.0 {
                     return Err(self.error_at(
-                        Some(rt),
+                        Some(&rt),
                         &field,
-                        format!("must be > 0, got {}", rt.text),
+                        format!("must be > 0, got {}", self.text),
                     ));
                 }
                 Ok(Shape::Sphere { center, radius })
@@ -519,8 +741,16 @@ impl<'a> Reader<'a> {
                 let field = format!("{who}: path");
                 let t = self.next(&field, "an OBJ file path")?;
                 let base = Path::new(self.file).parent().unwrap_or(Path::new(""));
-                let mesh = super::obj::load_obj(&base.join(t.text))
-                    .map_err(|e| self.error_at(Some(t), &field, e.to_string()))?;
+                let mesh = super::obj::load_obj(&base.join(&self.text)).map_err(|e| {
+                    // (the OBJ file's name comes from this file: escaped too)
+                    let at = if e.line > 0 {
+                        format!(":{}", e.line)
+                    } else {
+                        String::new()
+                    };
+                    let message = format!("{}{at}: {}", escaped(&e.file), e.message);
+                    self.error_at(Some(&t), &field, message)
+                })?;
                 let degenerate = (0..mesh.triangles.len())
                     .filter(|&k| is_degenerate_triangle(&mesh.triangle(k)))
                     .count();
@@ -549,7 +779,7 @@ impl<'a> Reader<'a> {
         let field = format!("{who}: cauchy_a");
         let (cauchy_a, t) = self.number(&field)?;
         if cauchy_a <= 0.0 {
-            return Err(self.error_at(Some(t), &field, format!("must be > 0, got {}", t.text)));
+            return Err(self.error_at(Some(&t), &field, format!("must be > 0, got {}", self.text)));
         }
         let cauchy_b = self.number_ge0(&format!("{who}: cauchy_b"))?;
         Ok(Glass {
@@ -575,4 +805,31 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
     let limit = 1e-12 * e1.length() * e2.length();
     // NaN (coordinates so large that the cross product overflows) is degenerate too.
     n.partial_cmp(&limit) != Some(std::cmp::Ordering::Greater)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Triangles are counted over the whole scene (triangle objects, 8 per prism, mesh
+    /// triangles) and refused past the limit at the object that passes it (the packet
+    /// path's 28-bit triangle numbers wrapped silently).
+    #[test]
+    fn triangles_past_the_limit_are_refused_at_the_object_that_passes_it() {
+        let prism = "prism 0 0 0 1 0 0 0 1 0 0 0 1 1 0 1 0 1 1 1 1 1 0 0 0 0 1 1 1.5 0";
+        let triangle = "triangle 0 0 0 1 0 0 0 1 0 1 1 1 0 0 0 0 1";
+        let text = format!("1 8 4\n{prism}\n{prism}\n{triangle}\n{triangle}\n0 0\n");
+        // 8 + 8 + 1 + 1 = 18 triangles
+        assert!(read_scene(text.as_bytes(), "t.txt", 18).is_ok());
+        let e = read_scene(text.as_bytes(), "t.txt", 17).unwrap_err();
+        assert_eq!(
+            (e.line, e.col, e.field.as_str()),
+            (5, 1, "triangle 2"),
+            "{e}"
+        );
+        assert!(e.message.contains("octaray's limit of 17"), "{e}");
+        let e = read_scene(text.as_bytes(), "t.txt", 10).unwrap_err();
+        assert_eq!((e.line, e.field.as_str()), (3, "prism 2"), "{e}");
+        assert_eq!(MAX_TRIANGLES, (1 << 28) - 1);
+    }
 }
