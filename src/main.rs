@@ -183,8 +183,9 @@ struct RenderArgs {
     /// Worker threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
-    /// Render only tile I of N (I from 0): band I of N even bands of rows. A PNG tile
-    /// records where it belongs, for `octaray assemble`.
+    /// Render only tile I of N (I from 0): every N-th of N x m stripes of rows (up to 16
+    /// per tile), so that tiles take about the same time. A PNG tile records where it
+    /// belongs, for `octaray assemble`.
     #[arg(long, value_name = "I/N", value_parser = octaray::farm::parse_tile, conflicts_with = "crop")]
     tile: Option<(u32, u32)>,
     /// Render only the pixels [X0,X1) x [Y0,Y1) of the frame (recorded in a PNG, as --tile).
@@ -397,6 +398,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         &settings,
         rects.as_deref().unwrap_or(&full),
     );
+    let start = std::time::Instant::now();
     let written = match &args.output {
         Some(path) => write_frame(&frame.piece, path, &scene, &profile, &settings, args.tile),
         None => write_next_output(&frame.piece.image, Path::new(".")).map_err(|e| Failure {
@@ -409,7 +411,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         describe_piece(&settings, &frame.piece, args.tile),
         args.profile,
         threads_used(args.threads),
-        frame.summary(),
+        frame.summary(start.elapsed().as_secs_f64()),
         written.display()
     );
     Ok(())
@@ -446,8 +448,13 @@ fn describe_piece(settings: &RenderSettings, piece: &Piece, tile: Option<(u32, u
     let mut out = format!("{}x{}", settings.width, settings.height);
     match (tile, &piece.rects[..]) {
         (Some((i, n)), rects) => {
+            let stripes = if rects.len() == 1 {
+                "stripe"
+            } else {
+                "stripes"
+            };
             out += &format!(
-                ", tile {i}/{n} ({} stripes, {} rows)",
+                ", tile {i}/{n} ({} {stripes}, {} rows)",
                 rects.len(),
                 piece.image.height
             )
@@ -469,11 +476,12 @@ struct Frame {
 }
 
 impl Frame {
-    fn summary(&self) -> String {
+    /// Times (and `write_s`, encoding and writing the image) and rays.
+    fn summary(&self, write_s: f64) -> String {
         let s = &self.piece.stats;
         let secs = self.prepare_s + self.render_s;
         format!(
-            "{secs:.3} s (prepare {:.3} s, render {:.3} s), {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s",
+            "{secs:.3} s (prepare {:.3} s, render {:.3} s; write {write_s:.3} s), {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s",
             self.prepare_s,
             self.render_s,
             s.total_rays() as f64 / 1e6,
@@ -601,6 +609,7 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
         };
         let full = [PixelRect::full(size.width, size.height)];
         let frame = render_frame(&scene, &profile, &settings, &full);
+        let start = std::time::Instant::now();
         write_frame(&frame.piece, &out, &scene, &profile, &settings, None)?;
         say!(
             "{name}: frame {k} ({}:{}), {}x{}, profile {}, {} threads: {} -> {}",
@@ -610,7 +619,7 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
             size.height,
             args.profile,
             threads_used(args.threads),
-            frame.summary(),
+            frame.summary(start.elapsed().as_secs_f64()),
             out.display()
         );
     }

@@ -280,13 +280,13 @@ fn assemble_refuses_missing_overlapping_and_foreign_tiles_by_name() {
     ok(&["render", "--size", "64x40", "--tile", "1/3", "-o", p(&bmp)]);
     refused(
         &["assemble", p(&t0), p(&bmp), p(&t2), "-o", o],
-        "t.bmp: not a PNG file",
+        "t.bmp: not a readable PNG file",
     );
     let plain = d.join("plain.png");
     fs::write(&plain, b"not an image").unwrap();
     refused(
         &["assemble", p(&plain), "-o", o],
-        "plain.png: not a PNG file",
+        "plain.png: not a readable PNG file",
     );
     refused(
         &["assemble", p(&t0), p(&t1), p(&t2), "-o", p(&t1)],

@@ -7,10 +7,10 @@
 //! stripes (m up to [`STRIPES`] per tile, each at least two rows high and an even number
 //! of rows, so that the frame loop's 4 × 2 sample blocks stay full), and tile I takes
 //! stripes I, I + N, I + 2N, ... Every tile thus samples the whole height of the frame,
-//! sky and floor alike, and takes about the same time: contiguous bands of the given
-//! scene at 4K took from 0.3 s (sky) to 3.7 s (floor and mirrors) for 16 tiles, and a
-//! frame split over N machines is as late as its slowest tile. Stripes of whole rows
-//! keep any N up to the height possible (a grid of rectangles needs N to factor).
+//! sky and floor alike, and takes about the same time, where contiguous bands of rows
+//! differ tenfold (benches/README.md), and a frame split over N machines is as late as
+//! its slowest tile. Stripes of whole rows keep any N up to the height possible (a grid
+//! of rectangles needs N to factor).
 
 pub mod digest;
 

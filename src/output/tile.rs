@@ -83,7 +83,9 @@ const SETTINGS: &str = "octaray-settings";
 pub enum TileError {
     #[error("cannot read: {0}")]
     Io(#[from] std::io::Error),
-    #[error("not a PNG file ({0}); tiles are written as .png, which records where they belong")]
+    #[error(
+        "not a readable PNG file ({0}); tiles are written as .png, which records where they belong"
+    )]
     NotPng(String),
     #[error(
         "not a tile: no {FRAME} text chunk (write tiles with `octaray render ... -o NAME.png`)"
