@@ -54,7 +54,7 @@ def main():
     ap.add_argument("--size", default="3840x2160")
     a = ap.parse_args()
     w, h = map(int, a.size.split("x"))
-    work = tempfile.mkdtemp(prefix="octaray-farm-bench.")
+    work = tempfile.mkdtemp(prefix="octaray-farm-figures.")
     ss16 = os.path.join(work, "ss16.toml")
     with open(ss16, "w") as f:
         f.write("samples_per_pixel = 16\n")
