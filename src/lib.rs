@@ -7,6 +7,7 @@
 //! ARCHITECTURE.md.
 
 pub mod bvh;
+pub mod farm;
 pub mod geometry;
 pub mod math;
 pub mod output;

@@ -7,9 +7,15 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
-use octaray::output::{check_output, check_output_dir, write_image, write_next_output};
-use octaray::render::RenderSettings;
+use octaray::farm::FramePattern;
+use octaray::farm::Piece;
+use octaray::farm::digest::FrameDigest;
+use octaray::output::tile::TileMeta;
+use octaray::output::{
+    check_output, check_output_dir, is_png, same_file, write_image, write_next_output, write_tile,
+};
 use octaray::render::profile::Profile;
+use octaray::render::{PixelRect, RenderSettings};
 use octaray::scene::parse::{
     MAX_PIXELS, Parsed, parse_scene, parse_scene_file, parse_scene_reader,
 };
@@ -46,8 +52,11 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Render a scene file to BMP or PNG.
+    /// Render a scene file to BMP or PNG: the whole frame, a piece of it (--tile,
+    /// --crop) or the frames of a camera path (--camera-path).
     Render(RenderArgs),
+    /// Put the PNG pieces of a frame (render --tile/--crop -o NAME.png) back together.
+    Assemble(AssembleArgs),
     /// Trace benchmark on an OBJ mesh: load, BVH build, closest-hit and shadow (any-hit)
     /// rays on the packet and single-ray paths, the work the Embree comparison of
     /// benches/embree/ measures.
@@ -143,6 +152,10 @@ struct ViewArgs {
     /// Benchmark: render N frames along a scripted flight without a window and print fps.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     frames: Option<u32>,
+    /// Append the camera of every frame drawn to this camera path file (one line per
+    /// camera: eye, look-at, up, fov), for `octaray render --camera-path`.
+    #[arg(long, value_name = "PATH.txt")]
+    record: Option<PathBuf>,
 }
 
 #[derive(Args, Debug, Default)]
@@ -176,6 +189,40 @@ struct RenderArgs {
     /// Worker threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
+    /// Render only tile I of N (I from 0): every N-th of N x m stripes of rows (up to 16
+    /// per tile), so that tiles take about the same time. A PNG tile records where it
+    /// belongs, for `octaray assemble`.
+    #[arg(long, value_name = "I/N", value_parser = octaray::farm::parse_tile, conflicts_with = "crop")]
+    tile: Option<(u32, u32)>,
+    /// Render only the pixels [X0,X1) x [Y0,Y1) of the frame (recorded in a PNG, as --tile).
+    #[arg(long, value_name = "X0,X1,Y0,Y1", value_parser = octaray::farm::parse_crop)]
+    crop: Option<PixelRect>,
+    /// Render the frames of a camera path (one camera a line: eye, look-at, up, fov)
+    /// to the names of `-o PATTERN` (printf-style, e.g. 'frames/f_%04d.png').
+    #[arg(
+        long,
+        value_name = "PATH.txt",
+        conflicts_with_all = ["eye", "look_at", "up", "fov", "tile", "crop"]
+    )]
+    camera_path: Option<PathBuf>,
+    /// Frames A to B of the camera path (from 0, inclusive), or one frame A [default: all].
+    #[arg(long, value_name = "A..B", value_parser = octaray::farm::parse_frames, requires = "camera_path")]
+    frames: Option<(u32, u32)>,
+    /// Leave outputs that exist alone (a requeued job resumes where it stopped).
+    #[arg(long, requires = "output")]
+    skip_existing: bool,
+}
+
+#[derive(Args, Debug)]
+struct AssembleArgs {
+    /// The pieces: PNG files written by `octaray render --tile I/N` (or --crop) `-o NAME.png`,
+    /// in any order.
+    #[arg(required = true, value_name = "TILE")]
+    tiles: Vec<PathBuf>,
+    /// The frame: .png (recording its settings, as a whole render does) or .bmp; replaced
+    /// atomically.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -310,6 +357,9 @@ fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
 }
 
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
+    if args.camera_path.is_some() {
+        return run_frames(args);
+    }
     // where the image goes, before the render's time is spent
     match &args.output {
         Some(path) => {
@@ -320,6 +370,15 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
                 "cannot write the image in the current directory: {e}"
             ))
         })?,
+    }
+    if let (true, Some(path)) = (args.skip_existing, &args.output)
+        && exists(path)
+    {
+        say!(
+            "octaray: {} exists, left alone (--skip-existing)",
+            path.display()
+        );
+        return Ok(());
     }
     let (parsed, name) = load(args.scene.as_deref())?;
     if let (None, Some(e)) = (args.size, &parsed.too_large) {
@@ -338,38 +397,279 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
+    let rects = piece(args, size)?;
     let profile = load_profile("--profile", &args.profile)?;
     warn_caustic_pairs(&scene, &profile);
-    let start = std::time::Instant::now();
-    let prepared = profile.prepare(&scene, settings.camera.eye);
-    let rendered = prepared.render(&settings);
-    let secs = start.elapsed().as_secs_f64();
-    warn_f32_detail(&scene, &prepared);
-    let written = match &args.output {
-        Some(path) => write_image(&rendered.image, path).map(|()| path.clone()),
-        None => write_next_output(&rendered.image, Path::new(".")),
+    if rects.is_some() && !args.output.as_deref().is_some_and(is_png) {
+        say!(
+            "octaray: warning: only a .png piece records where it belongs (for `octaray assemble`)"
+        );
     }
-    .map_err(|e| Failure {
+    let full = [PixelRect::full(size.width, size.height)];
+    let frame = render_frame(
+        &scene,
+        &profile,
+        &settings,
+        rects.as_deref().unwrap_or(&full),
+    );
+    let start = std::time::Instant::now();
+    let written = match &args.output {
+        Some(path) => write_frame(&frame.piece, path, &scene, &profile, &settings, args.tile),
+        None => write_next_output(&frame.piece.image, Path::new(".")).map_err(|e| Failure {
+            code: 1,
+            message: e.to_string(),
+        }),
+    }?;
+    say!(
+        "{name}: {}, profile {}, {} threads: {} -> {}",
+        describe_piece(&settings, &frame.piece, args.tile),
+        args.profile,
+        threads_used(args.threads),
+        frame.summary(start.elapsed().as_secs_f64()),
+        written.display()
+    );
+    Ok(())
+}
+
+/// Whether anything of that name exists (a dangling symbolic link counts).
+fn exists(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok()
+}
+
+fn threads_used(threads: Option<u32>) -> String {
+    threads.map_or_else(
+        || octaray::parallel::threads().to_string(),
+        |t| t.to_string(),
+    )
+}
+
+/// The rectangles of `--tile` or `--crop` in a frame of `size` (`None`: the whole frame).
+fn piece(args: &RenderArgs, size: viewer::Size) -> Result<Option<Vec<PixelRect>>, Failure> {
+    let (w, h) = (size.width, size.height);
+    if let Some((i, n)) = args.tile {
+        return octaray::farm::tile_rects(i, n, w, h)
+            .map(Some)
+            .map_err(|e| Failure::input(format!("--tile {i}/{n}: {e}")));
+    }
+    args.crop
+        .map(|crop| octaray::farm::check_crop(crop, w, h).map(|r| vec![r]))
+        .transpose()
+        .map_err(|e| Failure::input(format!("--crop: {e}")))
+}
+
+/// `1920x1080`, `1920x1080, crop 0,100,0,50` or `1920x1080, tile 3/8 (16 stripes, 135 rows)`.
+fn describe_piece(settings: &RenderSettings, piece: &Piece, tile: Option<(u32, u32)>) -> String {
+    let mut out = format!("{}x{}", settings.width, settings.height);
+    match (tile, &piece.rects[..]) {
+        (Some((i, n)), rects) => {
+            let stripes = if rects.len() == 1 {
+                "stripe"
+            } else {
+                "stripes"
+            };
+            out += &format!(
+                ", tile {i}/{n} ({} {stripes}, {} rows)",
+                rects.len(),
+                piece.image.height
+            )
+        }
+        (None, [r]) if *r != PixelRect::full(settings.width, settings.height) => {
+            out += &format!(", crop {},{},{},{}", r.x0, r.x1, r.y0, r.y1)
+        }
+        _ => {}
+    }
+    out
+}
+
+/// A rendered frame (or piece) and where its time went.
+struct Frame {
+    piece: Piece,
+    /// Building the BVH and photon map for the frame's eye.
+    prepare_s: f64,
+    render_s: f64,
+}
+
+impl Frame {
+    /// Times (and `write_s`, encoding and writing the image) and rays.
+    fn summary(&self, write_s: f64) -> String {
+        let s = &self.piece.stats;
+        let secs = self.prepare_s + self.render_s;
+        format!(
+            "{secs:.3} s (prepare {:.3} s, render {:.3} s; write {write_s:.3} s), {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s",
+            self.prepare_s,
+            self.render_s,
+            s.total_rays() as f64 / 1e6,
+            s.primary_rays,
+            s.shadow_rays,
+            s.reflection_rays,
+            s.total_rays() as f64 / 1e6 / secs.max(1e-9),
+        )
+    }
+}
+
+/// Prepares `scene` at the camera's eye (the packet path's f32 frame is centred there, as
+/// in every one-process render) and renders the rectangles `rects` of the frame
+/// `settings` describes.
+fn render_frame(
+    scene: &octaray::scene::Scene,
+    profile: &Profile,
+    settings: &RenderSettings,
+    rects: &[PixelRect],
+) -> Frame {
+    let start = std::time::Instant::now();
+    let prepared = profile.prepare(scene, settings.camera.eye);
+    let prepare_s = start.elapsed().as_secs_f64();
+    let piece = octaray::farm::render_piece(&prepared, settings, rects);
+    let render_s = start.elapsed().as_secs_f64() - prepare_s;
+    warn_f32_detail(scene, &prepared);
+    Frame {
+        piece,
+        prepare_s,
+        render_s,
+    }
+}
+
+/// Writes a frame or piece to `path`; a PNG records the frame size, the piece's rectangle
+/// and the digest of the scene and settings ([`octaray::output::tile`]).
+fn write_frame(
+    piece: &Piece,
+    path: &Path,
+    scene: &octaray::scene::Scene,
+    profile: &Profile,
+    settings: &RenderSettings,
+    tile: Option<(u32, u32)>,
+) -> Result<PathBuf, Failure> {
+    let written = if is_png(path) {
+        let d = FrameDigest::new(
+            scene,
+            &settings.camera,
+            settings.width,
+            settings.height,
+            profile,
+        );
+        let meta = TileMeta {
+            frame: (settings.width, settings.height),
+            rects: piece
+                .rects
+                .iter()
+                .map(|r| [r.x0, r.x1, r.y0, r.y1])
+                .collect(),
+            tile,
+            digest: d.digest,
+            settings: d.settings,
+        };
+        write_tile(&piece.image, path, &meta)
+    } else {
+        write_image(&piece.image, path)
+    };
+    written.map(|()| path.to_path_buf()).map_err(|e| Failure {
+        code: 1,
+        message: e.to_string(),
+    })
+}
+
+/// `render --camera-path PATH.txt [--frames A..B] -o PATTERN`: each frame prepared at its
+/// own eye and rendered as `render --eye --look-at --up --fov` of its line renders it.
+/// Everything is checked before the first frame.
+fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
+    let path_file = args
+        .camera_path
+        .as_deref()
+        .expect("called with a camera path");
+    let pattern_text = args
+        .output
+        .as_deref()
+        .ok_or_else(|| {
+            Failure::input("--camera-path: give the frames' names with -o PATTERN, e.g. -o 'frames/f_%04d.png'")
+        })?
+        .to_string_lossy()
+        .into_owned();
+    let pattern =
+        FramePattern::parse(&pattern_text).map_err(|e| Failure::input(format!("--output: {e}")))?;
+    let cameras = octaray::scene::camera_path::read_camera_path(path_file)
+        .map_err(|e| Failure::input(e.to_string()))?;
+    let whole = (0, cameras.len().saturating_sub(1) as u32);
+    let (first, last) = octaray::farm::check_frames(args.frames.unwrap_or(whole), cameras.len())
+        .map_err(|e| Failure::input(format!("--frames: {}: {e}", path_file.display())))?;
+    check_output(&pattern.name(first), true)
+        .map_err(|e| Failure::input(format!("--output: {e}")))?;
+    let (parsed, name) = load(args.scene.as_deref())?;
+    if let (None, Some(e)) = (args.size, &parsed.too_large) {
+        return Err(Failure::input(e.to_string()));
+    }
+    let scene = parsed.scene;
+    let size = args.size.unwrap_or(viewer::Size {
+        width: scene.pixels,
+        height: scene.pixels,
+    });
+    let profile = load_profile("--profile", &args.profile)?;
+    for k in first..=last {
+        let out = pattern.name(k);
+        if args.skip_existing && exists(&out) {
+            say!(
+                "frame {k}: {} exists, left alone (--skip-existing)",
+                out.display()
+            );
+            continue;
+        }
+        let camera = &cameras[k as usize];
+        let settings = RenderSettings {
+            width: size.width,
+            height: size.height,
+            camera: camera.camera(),
+            crop: None,
+            threads: args.threads.map(|t| t as usize),
+            progress: true,
+        };
+        let full = [PixelRect::full(size.width, size.height)];
+        let frame = render_frame(&scene, &profile, &settings, &full);
+        let start = std::time::Instant::now();
+        write_frame(&frame.piece, &out, &scene, &profile, &settings, None)?;
+        say!(
+            "{name}: frame {k} ({}:{}), {}x{}, profile {}, {} threads: {} -> {}",
+            path_file.display(),
+            camera.line,
+            size.width,
+            size.height,
+            args.profile,
+            threads_used(args.threads),
+            frame.summary(start.elapsed().as_secs_f64()),
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// `assemble TILE... -o OUT`: refuses (exit 2, naming the tile) pieces that are no tiles,
+/// of other frames or settings, overlapping or leaving pixels uncovered.
+fn run_assemble(args: &AssembleArgs) -> Result<(), Failure> {
+    check_output(&args.output, true).map_err(|e| Failure::input(format!("--output: {e}")))?;
+    if let Some(t) = args.tiles.iter().find(|t| same_file(t, &args.output)) {
+        return Err(Failure::input(format!(
+            "--output: {} is one of the tiles",
+            t.display()
+        )));
+    }
+    let start = std::time::Instant::now();
+    let assembled = octaray::output::assemble::assemble(&args.tiles)
+        .map_err(|e| Failure::input(format!("assemble: {e}")))?;
+    let out = &args.output;
+    let written = if is_png(out) {
+        write_tile(&assembled.image, out, &assembled.meta)
+    } else {
+        write_image(&assembled.image, out)
+    };
+    written.map_err(|e| Failure {
         code: 1,
         message: e.to_string(),
     })?;
-    let s = &rendered.stats;
     say!(
-        "{name}: {}x{}, profile {}, {} threads: {:.3} s, {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s -> {}",
-        size.width,
-        size.height,
-        args.profile,
-        args.threads.map_or_else(
-            || octaray::parallel::threads().to_string(),
-            |t| t.to_string()
-        ),
-        secs,
-        s.total_rays() as f64 / 1e6,
-        s.primary_rays,
-        s.shadow_rays,
-        s.reflection_rays,
-        s.total_rays() as f64 / 1e6 / secs.max(1e-9),
-        written.display()
+        "assembled {} tiles into {}x{} in {:.3} s -> {}",
+        args.tiles.len(),
+        assembled.image.width,
+        assembled.image.height,
+        start.elapsed().as_secs_f64(),
+        out.display()
     );
     Ok(())
 }
@@ -402,7 +702,8 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
     let profile = load_profile("--profile", profile_name)?;
     warn_caustic_pairs(&parsed.scene, &profile);
     if let Some(frames) = args.frames {
-        let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames);
+        let mut record = open_record(args)?;
+        let report = viewer::benchmark(&parsed.scene, &profile, args.size, frames, record.as_mut());
         out!("{name}: {report}");
         return Ok(());
     }
@@ -427,10 +728,21 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         out_dir: args.out_dir.clone(),
         camera,
     };
-    viewer::run(&config).map_err(|e| Failure {
+    let record = open_record(args)?;
+    viewer::run(&config, record).map_err(|e| Failure {
         code: 1,
         message: e.to_string(),
     })
+}
+
+/// `view --record PATH.txt`, opened for appending once every other argument is checked.
+fn open_record(args: &ViewArgs) -> Result<Option<viewer::Recorder>, Failure> {
+    let Some(path) = args.record.as_deref() else {
+        return Ok(None);
+    };
+    viewer::Recorder::open(path)
+        .map(Some)
+        .map_err(|e| Failure::input(format!("--record: {}: {e}", path.display())))
 }
 
 /// Makes an interrupted run (SIGINT, SIGTERM, SIGHUP) remove its temporary files and
@@ -508,6 +820,7 @@ fn main() -> ExitCode {
     };
     let result = start(threads).and_then(|()| match cli.command {
         Some(Command::Render(args)) => run_render(&args),
+        Some(Command::Assemble(args)) => run_assemble(&args),
         Some(Command::BenchTrace(args)) => run_bench_trace(&args),
         Some(Command::View(args)) => run_view(&args),
         Some(Command::Tradeoff(args)) => run_tradeoff(&args),

@@ -141,7 +141,8 @@ fn load_when_present(path: &Path) -> Framebuffer {
 /// One session of the viewer with `profile`, capturing into `out`: 0, Up, 0, Esc (or 0,
 /// Esc without `moves`). Each capture must equal `octaray render` with the same camera
 /// and profile, byte for byte (both paths are deterministic), and the second must differ
-/// from the first.
+/// from the first. `--record` writes the cameras of the frames drawn: the start, then
+/// (with `moves`) the camera one step forward.
 fn session(display: &str, scene: &Path, profile: &str, out: &Path, moves: bool) {
     let log = fs::File::create(out.join("viewer.log")).expect("a log file");
     let _log_on_panic = LogOnPanic(out.join("viewer.log"));
@@ -151,6 +152,8 @@ fn session(display: &str, scene: &Path, profile: &str, out: &Path, moves: bool) 
             .arg(scene)
             .args(["--profile", profile, "--size", "200x150", "--out-dir"])
             .arg(out)
+            .arg("--record")
+            .arg(out.join("flight.txt"))
             .env("DISPLAY", display)
             .stdout(Stdio::null())
             .stderr(log)
@@ -194,6 +197,7 @@ fn session(display: &str, scene: &Path, profile: &str, out: &Path, moves: bool) 
             matches!(viewer.0.try_wait(), Ok(Some(_)))
         });
         assert!(!out.join("Output_12.bmp").exists());
+        assert_eq!(recorded_eyes(out), [start.eye]);
         return;
     }
 
@@ -244,6 +248,14 @@ fn session(display: &str, scene: &Path, profile: &str, out: &Path, moves: bool) 
     assert!(status.success(), "viewer exited with {status}");
     // No other files were written by the viewer than the two captures.
     assert!(!out.join("Output_13.bmp").exists());
+    assert_eq!(recorded_eyes(out), [start.eye, moved.eye]);
+}
+
+/// The eyes of the cameras `--record` wrote to `out/flight.txt`.
+fn recorded_eyes(out: &Path) -> Vec<glam::DVec3> {
+    let path = octaray::scene::camera_path::read_camera_path(&out.join("flight.txt"))
+        .expect("the recorded camera path");
+    path.iter().map(|c| c.eye).collect()
 }
 
 #[test]

@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use image::ImageFormat;
 
 use super::Framebuffer;
+use super::tile::TileMeta;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -22,7 +23,7 @@ pub enum OutputError {
     #[error("{path}: {source}")]
     Encode {
         path: String,
-        source: image::ImageError,
+        source: png::EncodingError,
     },
 }
 
@@ -236,23 +237,22 @@ fn forget_temp(tmp: &Path) {
 
 /// The encoded image, BMP or PNG by the extension of `path`.
 fn encode(fb: &Framebuffer, path: &Path) -> Result<Vec<u8>, OutputError> {
+    encode_with(fb, path, None)
+}
+
+/// [`encode`], with `meta` recorded in a PNG (a BMP has no place for it).
+fn encode_with(
+    fb: &Framebuffer,
+    path: &Path,
+    meta: Option<&TileMeta>,
+) -> Result<Vec<u8>, OutputError> {
     if format_for(path)? == ImageFormat::Bmp {
         return Ok(super::bmp::encode(fb));
     }
-    let mut out = std::io::Cursor::new(Vec::new());
-    image::write_buffer_with_format(
-        &mut out,
-        fb.as_bytes(),
-        fb.width,
-        fb.height,
-        image::ExtendedColorType::Rgb8,
-        ImageFormat::Png,
-    )
-    .map_err(|source| OutputError::Encode {
+    super::tile::encode_png(fb, meta).map_err(|source| OutputError::Encode {
         path: path.display().to_string(),
         source,
-    })?;
-    Ok(out.into_inner())
+    })
 }
 
 /// Writes `bytes` to `path` whole or not at all: a temporary file beside it, then a
@@ -293,6 +293,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
 /// atomically.
 pub fn write_image(fb: &Framebuffer, path: &Path) -> Result<(), OutputError> {
     write_atomic(path, &encode(fb, path)?)
+}
+
+/// [`write_image`] of a piece of a frame: a PNG records `meta` (where the piece
+/// belongs, [`super::tile`]); a BMP is the pixels alone.
+pub fn write_tile(fb: &Framebuffer, path: &Path, meta: &TileMeta) -> Result<(), OutputError> {
+    write_atomic(path, &encode_with(fb, path, Some(meta))?)
+}
+
+/// Whether `path` is a PNG name (pieces of frames record where they belong only there).
+pub fn is_png(path: &Path) -> bool {
+    matches!(format_for(path), Ok(ImageFormat::Png))
 }
 
 /// Writes `fb` to `path` only if no file of that name exists; `Ok(false)` if one does

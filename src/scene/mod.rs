@@ -5,6 +5,7 @@
 //! acceleration structures from it. Nothing here knows about rendering.
 
 pub mod camera;
+pub mod camera_path;
 pub mod input;
 pub mod obj;
 pub mod parse;

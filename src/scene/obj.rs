@@ -703,7 +703,10 @@ mod tests {
                     for tok in it {
                         let idx = tok.split('/').next().unwrap_or("");
                         let i: i64 = idx.parse().map_err(|_| {
-                            err(format!("f: '{}' is not a vertex index", crate::scene::text::escaped(tok)))
+                            err(format!(
+                                "f: '{}' is not a vertex index",
+                                crate::scene::text::escaped(tok)
+                            ))
                         })?;
                         let nv = vertices.len() as i64;
                         let abs = if i > 0 { i - 1 } else { nv + i };

@@ -19,6 +19,9 @@
 //! [`benchmark`] runs the same policy along a scripted flight without a window
 //! (`octaray view --frames 120`).
 //!
+//! [`Recorder`] (`--record PATH.txt`) appends the camera of every frame drawn as a camera
+//! path line ([`crate::scene::camera_path`]), so that a flight can be rendered offline.
+//!
 //! Without a display (Debian packages xvfb, xdotool, imagemagick), as in
 //! `tests/viewer_x11.rs` and for `docs/viewer.png`:
 //! ```text
@@ -418,6 +421,61 @@ fn spawn_capture_worker(
     Ok((cam_tx, done_rx, handle))
 }
 
+/// Appends the camera of each frame drawn to a camera path file (`--record`), once per
+/// camera: a still camera's refinement passes add nothing.
+pub struct Recorder {
+    file: std::fs::File,
+    path: PathBuf,
+    last: Option<Camera>,
+    failed: bool,
+}
+
+impl Recorder {
+    /// Opens `path` for appending (created if missing; a new file starts with a comment
+    /// naming the fields).
+    pub fn open(path: &Path) -> std::io::Result<Recorder> {
+        if path.is_dir() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "is a directory",
+            ));
+        }
+        let mut file = std::fs::OpenOptions::new()
+            .append(true)
+            .create(true)
+            .open(path)?;
+        if file.metadata()?.len() == 0 {
+            file.write_all(
+                b"// octaray camera path: eye x y z, look-at x y z, up x y z, vertical fov (degrees)\n",
+            )?;
+        }
+        Ok(Recorder {
+            file,
+            path: path.to_path_buf(),
+            last: None,
+            failed: false,
+        })
+    }
+
+    /// Appends `camera` unless it is the last one recorded. A failed write is reported
+    /// once on stderr and ends the recording (the flight goes on).
+    pub fn record(&mut self, camera: &Camera) {
+        if self.failed || self.last == Some(*camera) {
+            return;
+        }
+        self.last = Some(*camera);
+        let line = crate::scene::camera_path::format_line(camera) + "\n";
+        if let Err(e) = self.file.write_all(line.as_bytes()) {
+            self.failed = true;
+            let _ = writeln!(
+                std::io::stderr(),
+                "octaray: --record: {}: {e}; recording stopped",
+                self.path.display()
+            );
+        }
+    }
+}
+
 fn fmt_vec(v: DVec3) -> String {
     format!("({:.1}, {:.1}, {:.1})", v.x, v.y, v.z)
 }
@@ -461,8 +519,9 @@ impl minifb::InputCallback for KeyEvents {
 }
 
 /// Opens the window and runs until Esc or the window is closed. Pending captures are
-/// finished before returning.
-pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
+/// finished before returning. With `record`, the camera of every frame drawn is
+/// appended to a camera path.
+pub fn run(config: &ViewConfig, mut record: Option<Recorder>) -> Result<(), ViewerError> {
     let mut window = Window::new(
         "octaray",
         config.size.width as usize,
@@ -544,6 +603,9 @@ pub fn run(config: &ViewConfig) -> Result<(), ViewerError> {
             let (w, h) = (frame.image.width as u64, frame.image.height as u64);
             refiner.observe(w * h, frame.stats.elapsed);
             fps.tick(Instant::now());
+            if let Some(r) = record.as_mut() {
+                r.record(&frame.job.camera);
+            }
             shown = Some(frame);
             buffer_size = (0, 0); // present it
         }
@@ -735,8 +797,14 @@ impl fmt::Display for BenchReport {
 /// Renders `frames` frames along [`flight_camera`] twice — at full resolution, then with
 /// the viewer's moving-resolution policy — and measures how long the viewer takes to reach
 /// full resolution after stopping. Frames are scaled up to the window as the viewer does;
-/// no window is opened.
-pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> BenchReport {
+/// no window is opened. `record` gets the cameras of the first flight.
+pub fn benchmark(
+    scene: &Scene,
+    profile: &Profile,
+    size: Size,
+    frames: u32,
+    mut record: Option<&mut Recorder>,
+) -> BenchReport {
     let mut buffer = Vec::new();
     let (w, h) = (size.width, size.height);
     let mut view = View::new(profile, scene, flight_camera(0).eye);
@@ -759,6 +827,9 @@ pub fn benchmark(scene: &Scene, profile: &Profile, size: Size, frames: u32) -> B
             };
             let frame = view.render(&job);
             present_into(&frame.image, w as usize, h as usize, &mut buffer);
+            if let (false, Some(r)) = (adaptive, record.as_deref_mut()) {
+                r.record(&job.camera);
+            }
             let (pw, ph) = preview_size(w, h, divisor);
             refiner.observe(pw as u64 * ph as u64, frame.stats.elapsed);
             rays += frame.stats.total_rays();
