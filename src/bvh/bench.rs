@@ -200,9 +200,8 @@ fn chunks<T: Send>(
 /// with copies of its first ray), with `active` lanes.
 #[inline]
 fn packet(origin: &[Vec3], dir: &[Vec3], b: usize, n: usize, active: Mask8) -> RayPacket8 {
-    // a whole packet straight from the ray arrays; a short last one padded (a
-    // `copy_from_slice` of run-time length is a memmove call: 3.4 % of a perf profile
-    // of bench-trace primary mode=8)
+    // a whole packet straight from the ray arrays (a copy of run-time length would
+    // be a memmove call); a short last one padded
     if let (Ok(o), Ok(d)) = (
         <&[Vec3; 8]>::try_from(&origin[b..b + n]),
         <&[Vec3; 8]>::try_from(&dir[b..b + n]),

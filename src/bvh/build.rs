@@ -18,8 +18,7 @@
 //! two sets is tried.
 //! Primitives are reordered into leaf order once, at the end, by one gather. Each pair
 //! of children sits on one 64-byte cache line (node 1 may be an unreachable pad for
-//! that). The large arrays are in huge pages (kernel page-fault work was ~20 % of a
-//! perf profile of build and collapse before).
+//! that). The large arrays are in huge pages (fewer page faults while they fill).
 
 use glam::Vec4;
 use rayon::prelude::*;
@@ -287,9 +286,6 @@ fn step(part: &mut [Ref], b: &Bounds, depth: usize) -> Step {
             // comparison (was a saturating float-to-int cast per reference)
             let (axis, bin, base, scale) = (s.axis, s.bin as f32, s.base, s.scale);
             let left = |r: &Ref| (r.centroid2_on(axis) - base) * scale < bin;
-            // Tried: the branchless partition on every range: thread CPU time of
-            // the torus1m build 408, 431, 389 ms on ranges <= SAMPLE only; 449,
-            // 468, 466 on all (SAH 52.26, the tree changes slightly).
             let (mid, lb, rb) = match s.sides {
                 Some((lgeo, rgeo)) => {
                     let mid = partition_branchless(part, left);
@@ -819,9 +815,7 @@ fn gather<T: Copy + Send + Sync>(
 /// Moves the refs satisfying `left` to the front without a branch on `left` (Lomuto:
 /// each ref swaps with the one just past the left side, which then grows by one if
 /// the ref belongs left; on ranges that fit the cache the swaps cost less than the
-/// mispredicted branches); returns the left count. Torus1m build, thread CPU time,
-/// interleaved with the branching `partition` on every range: 455/458, 439/449,
-/// 358/473 ms.
+/// mispredicted branches); returns the left count.
 #[inline]
 fn partition_branchless(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
     let mut j = 0;

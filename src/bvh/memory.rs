@@ -5,8 +5,6 @@
 /// pages are touched), so incoherent rays walking megabytes of nodes and blocks miss
 /// the TLB less. Embree does the same by default on Linux. Small arrays, other
 /// systems: an ordinary vector. Filled in place, so the build copies nothing.
-// Measured: bench-trace torus100k incoherent mode=1 alone, 1 thread, interleaved at
-// load ~7: 1.12, 1.05, 1.30 Mrays/s with, 0.91, 0.99, 0.89 without.
 pub(crate) fn huge_vec<T: Copy>(cap: usize) -> Vec<T> {
     #[cfg(target_os = "linux")]
     {

@@ -1,17 +1,17 @@
 //! The bounding volume hierarchy of the fast path, and the short list beside it.
 //!
-//! [`Bvh`] owns a [`PrimSet`]: its bounded kinds (spheres, triangles, fully clipped
-//! quadrics) sit in a binned-SAH tree ([`build`]); quadrics unclipped on some axis
-//! and the floor cannot have finite boxes and are tested after the tree, in that
-//! order, on every query. Queries come in two widths with the same contract:
+//! [`Bvh`] owns a [`PrimSet`]: its bounded kinds (spheres, triangles, quadrics with
+//! finite bounds) sit in a binned-SAH tree ([`build`]); quadrics without finite bounds
+//! and the floor are tested after the tree, in that order, on every query. Queries come in two widths with the same contract:
 //! [`Bvh::intersect_x8`]/[`Bvh::occluded_x8`] for packets and
 //! [`Bvh::intersect_1`]/[`Bvh::occluded_1`] for single rays, which walk an 8-wide tree
 //! collapsed from the binary one ([`wide`]); the binary single-ray walk stays as
 //! [`Bvh::intersect_1_binary`]/[`Bvh::occluded_1_binary`] (benches, test oracle).
 //!
 //! Edge rules: a hit counts iff 0 < t < t_max; an exact tie in t goes to the lower
-//! object index (file order), the floor last; shadow (any-hit) queries stop at the
-//! first blocker.
+//! object index (file order), then the lower primitive, the floor last
+//! (`PrimSet::record_1`); shadow (any-hit) queries stop at the first blocker. Every
+//! query is generic over the triangle test (`TriangleKernel`).
 
 /// `$recv.$method::<T, K>(args)` for the constant `K` among `$n...` equal to `$k`:
 /// picks the const instance of a walk (a direction octant, a permutation axis) once
@@ -42,8 +42,6 @@ use crate::geometry::{PrimKind, PrimSet};
 
 /// Depth limit of the traversal stacks; the builder keeps the tree below it (SAH
 /// splits to depth 48, then halvings: at most 48 + 28 levels for 2²⁸ primitives).
-/// Small, because each query zeroes its stack: at 256 entries the memset took 3 % of
-/// a render of the given scene.
 pub const STACK_SIZE: usize = 96;
 
 /// Traversal counters (design item 11): box tests and primitive tests.

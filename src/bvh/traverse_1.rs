@@ -1,5 +1,5 @@
 //! Single-ray traversal of the binary tree: the baseline the packet path and the
-//! 8-wide single-ray path (`wide.rs`, behind `Bvh::intersect_1`) are measured against,
+//! 8-wide single-ray path (`wide/walk_1.rs`, behind `Bvh::intersect_1`) are measured against,
 //! and the wide path's test oracle.
 //!
 //! Ordered, depth first: at an interior node both children's boxes are tested; the

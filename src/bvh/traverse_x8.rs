@@ -104,25 +104,16 @@ fn least_near(near: f32x8, m: Mask8) -> f32 {
 
 /// Trees of at least this many wide nodes trace the lanes of an incoherent packet
 /// (mixed direction signs) one by one through the wide single-ray walk instead of
-/// walking the binary tree as a packet. (Only trees that the frustum walk serves get
-/// here: it must not be below [`WIDE_PACKET_MIN_NODES`].)
-// Measured (1 thread, interleaved runs, medians): bench-trace torus100k incoherent
-// mode=8 1.14 -> 2.35 Mrays/s (6 pairs; the binary packet walk of 8 unrelated rays
-// fetches the nodes of all eight). Renders of a torus100k mesh with mirror spheres and
-// of 40, 300 and 3000 mirror spheres (RL 4, 512²): the same images, times within the
-// noise (few packets mix signs there). Lanes sharing their signs but spread too wide
-// for the frustum (shadow rays from a floor towards a point light) keep the binary
-// packet walk: sent lane by lane too, the torus mesh scene rendered ~8 % slower.
-// Camera packets straddling an axis plane (the image's centre row or column, ~0.6 %
-// of the packets at 1024²) mix signs too, and now take eight single-ray walks: about
-// twice the binary packet walk's cost for them, well under 1 % of a frame.
+/// walking the binary tree as a packet, which would fetch the nodes of eight unrelated
+/// rays. (Only trees that the frustum walk serves get here: it must not be below
+/// [`WIDE_PACKET_MIN_NODES`].)
 pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
 const _: () = assert!(LANES_MIN_NODES >= WIDE_PACKET_MIN_NODES);
 
 impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
-    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide_x8.rs`); in trees of at least
+    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide/walk_x8.rs`); in trees of at least
     /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs go lane by lane through
     /// the 8-wide single-ray walk; the others walk the binary tree
     /// ([`Bvh::intersect_x8_binary`]).
@@ -182,13 +173,6 @@ impl Bvh {
     /// [`Bvh::intersect_x8`] lane by lane: each lane of `active` through
     /// [`Bvh::intersect_1`] (incoherent packets here, and the renderer's packets of
     /// too few lanes).
-    // Tried (session 7): the eight walks interleaved, one node or leaf step of each
-    // live lane in turn (the walk's state in a struct, its stack per lane), so that one
-    // lane's prefetches land while the others run. bench-trace torus100k, 1 thread,
-    // interleaved runs on one core: incoherent mode=8 median 2.59 -> 2.68 Mrays/s (16
-    // pairs, 10 in its favour), but the step-shaped single-ray walk it shares lost
-    // ~4 % in incoherent mode=1 (8 pairs) and ~10 % in primary mode=1 (6 pairs).
-    // Not kept: the walk is not waiting on single fetches so much as on their number.
     pub fn intersect_x8_lanes<T: TriangleKernel>(
         &self,
         r: &RayPacket8,

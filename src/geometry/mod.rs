@@ -135,9 +135,10 @@ pub struct Surface8 {
 pub enum PrimKind {
     Sphere = 0,
     Triangle = 1,
-    /// A quadric clipped on every axis (finite box): lives in the BVH.
+    /// A quadric with finite bounds (clipped on every axis, an ellipsoid, or cut across
+    /// axes along which its sections are bounded): lives in the BVH.
     Quadric = 2,
-    /// A quadric unclipped on some axis: tested beside the BVH.
+    /// A quadric without finite bounds: tested beside the BVH.
     FreeQuadric = 3,
     /// The floor: tested beside the BVH, after everything else.
     Floor = 4,
@@ -162,6 +163,9 @@ impl PrimKind {
 /// Bits of a primitive code below the kind: code = kind << 28 | index (always >= 0;
 /// −1 in a hit means no hit).
 pub const INDEX_BITS: u32 = 28;
+
+// every triangle a scene may hold has a code
+const _: () = assert!(crate::scene::parse::MAX_TRIANGLES < 1 << INDEX_BITS);
 
 /// The code a hit records for primitive `index` of `kind`.
 #[inline]
@@ -259,10 +263,8 @@ pub struct PrimSet {
     /// below (world z < 0), +1 above, 0 touching or crossing it (or unbounded). A ray
     /// whose nearest hit so far is an object wholly on the far side of the plane from
     /// its origin crossed the plane first, so it takes the floor wherever it meets it,
-    /// whatever the rounding of the two distances: [`FLOOR_TIE`]'s window is for
-    /// surfaces lying on the floor, and let a square 0.0002 below it (52 f32 ulps of
-    /// the eye's height) replace the visible floor, and one 0.0002 above it seen from
-    /// below (found by an independent renderer of the spec). Empty when no object lies
+    /// whatever the rounding of the two distances ([`FLOOR_TIE`]'s window is for
+    /// surfaces lying on the floor, not a few ulps off it). Empty when no object lies
     /// wholly on one side; otherwise a ray pays for the lookup only when it comes from
     /// the side opposite such an object ([`PrimSet::any_below`], [`PrimSet::any_above`]):
     /// in a scene seen from above with nothing below the floor, one compare per packet.
@@ -572,9 +574,8 @@ impl PrimSet {
 
     /// The floor's part of [`PrimSet::intersect_x8`] (the ordering rules of
     /// [`PrimSet::floor_first`] and [`PrimSet::behind_floor_hit`]). The per-lane work
-    /// of the rare cases sits in cold functions of its own: inlined, the compiler
-    /// hoisted their f32 → f64 widening of the ray out of the leaf loop, ~150
-    /// instructions on every floor test (callgrind).
+    /// of the rare cases sits in cold functions of its own (inlined, their f32 → f64
+    /// widening of the ray was hoisted into every floor test).
     #[inline]
     pub fn intersect_floor_x8(&self, r: &RayPacket8, active: Mask8, hit: &mut HitPacket8) {
         let Some(f) = &self.floor else { return };

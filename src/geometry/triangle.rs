@@ -220,8 +220,7 @@ impl Triangle32 {
         active: Mask8,
         t_max: f32x8,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
-        // (splatted one by one: a `map` over the array was left as a `try_map` call,
-        // 4 % of a 1-thread profile of the given scene)
+        // (splatted one by one: a `map` over the array stayed a call)
         let [a, b, c] = self.v;
         let v = [Vec3x8::splat(a), Vec3x8::splat(b), Vec3x8::splat(c)];
         intersect_splat_x8(v, r, active, t_max)
@@ -370,7 +369,7 @@ pub struct Triangle8 {
 impl Triangle8 {
     /// Packs up to 8 triangles; lane i holds `tris[i]`, padding lanes repeat the first
     /// vertex three times. Written lane by lane: the BVH collapse packs every triangle
-    /// through here (nested `from_fn`s were 2.6 % of bench-trace torus1m's perf samples).
+    /// through here.
     #[allow(clippy::needless_range_loop)] // `lane` indexes the innermost arrays
     pub fn new(tris: &[Triangle32]) -> Triangle8 {
         assert!(!tris.is_empty() && tris.len() <= 8, "1 to 8 triangles");

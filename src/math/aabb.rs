@@ -42,8 +42,7 @@ impl Aabb {
     /// component, its origin on the face: a camera level with the top of a clipped
     /// cylinder, the centre row of an odd-sized image) met that face at t = 0 as its
     /// exit (1/d is +2¹⁰⁰ for +0) and missed the box, though the surface's points on
-    /// the face count (the quadric's box test is inclusive): a row of the cylinder's
-    /// top vanished (found by a differential test of two builds). Inside the gap, the
+    /// the face count (the quadric's box test is inclusive). Inside the gap, the
     /// face imposes no bound on such a ray; a ray in the moved face plane itself meets
     /// nothing inside. Empty and infinite coordinates stay as they are.
     pub fn outward(self) -> Aabb {

@@ -17,23 +17,6 @@ pub const fn gamma(n: u32) -> f64 {
     ne / (1.0 - ne)
 }
 
-/// The next representable f64 above `v` (−0 and +0 both step to the smallest subnormal).
-pub fn next_up(v: f64) -> f64 {
-    if v.is_infinite() && v > 0.0 {
-        return v;
-    }
-    if v == 0.0 {
-        return f64::from_bits(1);
-    }
-    let bits = v.to_bits();
-    f64::from_bits(if v > 0.0 { bits + 1 } else { bits - 1 })
-}
-
-/// The next representable f64 below `v`.
-pub fn next_down(v: f64) -> f64 {
-    -next_up(-v)
-}
-
 /// Moves `p` (with per-component error bound `err`) off its surface along the unit
 /// normal `n`, to the side that direction `w` leaves towards, and rounds each moved
 /// component away from `p` so the rounding of the sum cannot undo the offset.
@@ -46,9 +29,9 @@ pub fn offset_ray_origin(p: DVec3, err: DVec3, n: DVec3, w: DVec3) -> DVec3 {
     let mut po = p + offset;
     for i in 0..3 {
         if offset[i] > 0.0 {
-            po[i] = next_up(po[i]);
+            po[i] = po[i].next_up();
         } else if offset[i] < 0.0 {
-            po[i] = next_down(po[i]);
+            po[i] = po[i].next_down();
         }
     }
     po
@@ -86,15 +69,6 @@ mod tests {
     fn gamma_grows_with_n() {
         assert!(gamma(1) > EPS_F64 && gamma(2) > gamma(1));
         assert!(gamma(3) < 4.0 * EPS_F64);
-    }
-
-    #[test]
-    fn next_up_and_down_step_one_ulp() {
-        assert_eq!(next_up(1.0), 1.0 + f64::EPSILON);
-        assert_eq!(next_down(1.0), 1.0 - f64::EPSILON / 2.0);
-        assert!(next_up(0.0) > 0.0 && next_up(-0.0) > 0.0);
-        assert!(next_down(0.0) < 0.0);
-        assert_eq!(next_up(-1.0), -1.0 + f64::EPSILON / 2.0);
     }
 
     #[test]

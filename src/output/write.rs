@@ -401,7 +401,7 @@ mod tests {
     }
 
     /// A dangling symbolic link named Output_11.bmp is a taken name: skipped, not
-    /// written through, not retried forever (the loop found by fuzzing).
+    /// written through, not retried forever.
     #[cfg(unix)]
     #[test]
     fn dangling_links_take_their_names() {
@@ -431,7 +431,7 @@ mod tests {
             Err(OutputError::Extension { .. })
         ));
         assert!(check_output(&dir.join("missing/a.bmp"), true).is_err());
-        // names the rename would refuse only after the render (fuzz round 10)
+        // names the rename would refuse only after the render
         let text = dir.display().to_string();
         for bad in [format!("{text}/a.bmp/"), format!("{text}/a.bmp/.")] {
             assert!(check_output(Path::new(&bad), true).is_err(), "{bad}");
@@ -447,7 +447,7 @@ mod tests {
 
     /// Replacing a file keeps its permissions; a symbolic link stays a link and its
     /// file gets the image; a link to nothing and a file without write permission are
-    /// refused, up front and when writing, and left as they were (fuzz round 9).
+    /// refused, up front and when writing, and left as they were.
     #[cfg(unix)]
     #[test]
     fn replaced_files_keep_their_mode_and_links_are_written_through() {

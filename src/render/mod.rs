@@ -89,6 +89,9 @@ pub struct RenderStats {
     /// Spotlight cone tests (one per shading point and spotlight). Zero without
     /// spotlights.
     pub cone_tests: u64,
+    /// BVH node tests (packet path; per packet or per single ray, as the walks count
+    /// them). Zero on the reference, which tests every object.
+    pub node_tests: u64,
     /// Distance to the nearest thing a camera ray hit (infinite when none did).
     pub nearest_hit: f64,
     pub elapsed: Duration,
@@ -103,6 +106,7 @@ impl Default for RenderStats {
             refraction_rays: 0,
             quadric_tests: 0,
             cone_tests: 0,
+            node_tests: 0,
             nearest_hit: f64::INFINITY,
             elapsed: Duration::ZERO,
         }
@@ -121,6 +125,7 @@ impl RenderStats {
         self.refraction_rays += o.refraction_rays;
         self.quadric_tests += o.quadric_tests;
         self.cone_tests += o.cone_tests;
+        self.node_tests += o.node_tests;
         self.nearest_hit = self.nearest_hit.min(o.nearest_hit);
     }
 }

@@ -46,11 +46,8 @@ pub struct Detail {
 
 impl Detail {
     /// Whether f32 loses this detail: `size` below 8 f32 epsilons (2⁻²⁰ ≈ 9.5e-7) of
-    /// `distance`. Measured on the given scene scaled about the eye, `fast` against the
-    /// reference at 128² (`tests/extremes.rs`, `detail_below_f32_precision_is_flagged`):
-    /// size/distance 1.8e-6 (scale 3e-6) puts 0.65 % of the pixels more than 8/255 off,
-    /// within the `fast` profile's 1 %; 6.1e-7 (scale 1e-6) puts 2.0 % off, and 2.5e-8
-    /// (scale 1e-7) 5.5 %.
+    /// `distance`, where the `fast` profile leaves its 1 % bound of pixels off by more
+    /// than 8/255 (`tests/extremes.rs`, `detail_below_f32_precision_is_flagged`).
     ///
     /// An object reaching beyond [`F32_RANGE`] is lost to f32 whatever its size.
     pub fn below_f32(&self) -> bool {

@@ -250,7 +250,7 @@ impl<'a> Reference<'a> {
     ) -> DVec3 {
         // per level: the local colour (with any branched-off light) and the weight of
         // the colour of the next level in the chain
-        let mut chain: Vec<(DVec3, DVec3)> = Vec::new();
+        let mut chain = MirrorChain::default();
         loop {
             stats.quadric_tests += self.quadrics;
             let Some(found) = self.nearest(&ray, f64::INFINITY) else {
@@ -386,12 +386,7 @@ impl<'a> Reference<'a> {
             level = next;
             weight *= w;
         }
-        chain
-            .iter()
-            .rev()
-            .fold(DVec3::ZERO, |deeper, &(local, kr)| {
-                (local + deeper * kr).clamp(DVec3::ZERO, DVec3::ONE)
-            })
+        chain.fold()
     }
 
     /// Ambient plus, for every point light then every spotlight, Phong diffuse and
@@ -491,6 +486,62 @@ pub fn render_with(
     caustic: &CausticSettings,
 ) -> Rendered {
     Reference::with_caustics(scene, caustic).render(settings, 1)
+}
+
+/// The levels of a mirror chain: per level the local colour and the weight of the next
+/// level's colour, folded back from the deepest with the spec's per-level clamping.
+/// Memory stays bounded at any recursion level: every [`CHAIN_LEVELS`] levels are
+/// composed into one map x ↦ clamp(a + b·x, lo, hi) per channel (a composition of such
+/// maps with b >= 0 is one), so a chain of at most that many levels folds exactly as
+/// written, a longer one within f64 rounding of it.
+#[derive(Default)]
+struct MirrorChain {
+    levels: Vec<(DVec3, DVec3)>,
+    /// (a, b, lo, hi) of the levels already composed, outermost first.
+    prefix: Option<[DVec3; 4]>,
+}
+
+/// Levels a [`MirrorChain`] holds before composing them.
+const CHAIN_LEVELS: usize = 64;
+
+impl MirrorChain {
+    fn push(&mut self, level: (DVec3, DVec3)) {
+        if self.levels.len() == CHAIN_LEVELS {
+            for &(local, kr) in &self.levels {
+                let inner = [local, kr, DVec3::ZERO, DVec3::ONE];
+                self.prefix = Some(match self.prefix {
+                    None => inner,
+                    Some([a, b, lo, hi]) => {
+                        let apply = |x: DVec3| (a + b * x).clamp(lo, hi);
+                        // weights above 1 compound without bound; inputs lie in [0, 1]
+                        let hold = |v: DVec3| v.clamp(DVec3::splat(-1e300), DVec3::splat(1e300));
+                        [
+                            hold(a + b * local),
+                            hold(b * kr),
+                            apply(inner[2]),
+                            apply(inner[3]),
+                        ]
+                    }
+                });
+            }
+            self.levels.clear();
+        }
+        self.levels.push(level);
+    }
+
+    fn fold(&self) -> DVec3 {
+        let c = self
+            .levels
+            .iter()
+            .rev()
+            .fold(DVec3::ZERO, |deeper, &(local, kr)| {
+                (local + deeper * kr).clamp(DVec3::ZERO, DVec3::ONE)
+            });
+        match self.prefix {
+            Some([a, b, lo, hi]) => (a + b * c).clamp(lo, hi),
+            None => c,
+        }
+    }
 }
 
 /// The reference's side of the frame loop: each sample of a block, one ray at a time.

@@ -3,8 +3,8 @@
 //! An input is a regular file or a pipe (`/dev/stdin`, `<(generator)`), read to its
 //! end, at most [`MAX_INPUT`] bytes. A regular file over the limit is refused from its
 //! size before a byte is read; a pipe is refused once it has delivered more.
-//! Directories and devices are refused before they are opened (/dev/zero filled
-//! gigabytes within seconds: found by fuzzing). Opening a FIFO waits for its writer,
+//! Directories and devices are refused before they are opened (/dev/zero would fill
+//! gigabytes within seconds). Opening a FIFO waits for its writer,
 //! as it does for any program.
 
 use std::fs::File;

@@ -99,11 +99,6 @@ impl Quadric {
             && inside(p.z, self.min.z, self.size.z)
     }
 
-    /// True when every axis is clipped, so the surface has finite bounds.
-    pub fn is_bounded(&self) -> bool {
-        self.size.x > 0.0 && self.size.y > 0.0 && self.size.z > 0.0
-    }
-
     /// True for the all-zero quadric, which is never hit.
     pub fn is_degenerate(&self) -> bool {
         self.coef.iter().all(|&c| c == 0.0)
@@ -197,9 +192,7 @@ impl Floor {
     /// its error of a tile line (a multiple of [`Floor::TILE`], the floor's edges
     /// included) is taken as on it, and so in the tile above it, as `floor` rules. A
     /// camera with integer, axis-aligned geometry puts whole rows of pixel rays exactly
-    /// on tile lines, where the rounding of the hit point (1e-5 in f32, 1e-14 in f64)
-    /// picked either tile: 77 % of such pixels wrong on the f32 paths, 26 % on the
-    /// reference (found by an independent renderer, checked in 60-digit arithmetic).
+    /// on tile lines, where the rounding of the hit point would pick either tile.
     pub fn color_at_within(x: f64, y: f64, ex: f64, ey: f64) -> DVec3 {
         let snap = |w: f64, e: f64| {
             let line = (w / Self::TILE).round() * Self::TILE;
@@ -241,12 +234,6 @@ impl Scene {
         parse_scene(Self::GIVEN, "scenes/given.txt")
             .expect("the embedded scene parses (checked by tests)")
             .scene
-    }
-
-    pub fn has_quadrics(&self) -> bool {
-        self.objects
-            .iter()
-            .any(|o| matches!(o.shape, Shape::Quadric(_)))
     }
 
     pub fn has_prisms(&self) -> bool {

@@ -26,9 +26,9 @@ pub const MAX_PIXELS: i64 = 16_384;
 pub const MAX_COUNT: i64 = 50_000_000;
 /// Most triangles a scene may hold, triangle objects, prism faces (8 a prism) and mesh
 /// triangles together: the packet path numbers its triangles in
-/// [`INDEX_BITS`](crate::geometry::INDEX_BITS) = 28 bits, and a 4 GiB OBJ file of fan
+/// 28 bits (the fast path's primitive codes), and a 4 GiB OBJ file of fan
 /// polygons can describe two billion.
-pub const MAX_TRIANGLES: u64 = (1 << crate::geometry::INDEX_BITS) - 1;
+pub const MAX_TRIANGLES: u64 = (1 << 28) - 1;
 
 /// A rejected scene file: `file:line:col: field: message`, or `file: field: message`
 /// where there is no position (a file that cannot be read).

@@ -51,8 +51,7 @@ pub fn material(rng: &mut Rng) -> Material {
 }
 
 /// A scene of `n` mixed primitives (spheres, triangles, clipped and unclipped
-/// quadrics; no glass, which only the reference renders) scattered over the floor, lit by point lights and
-/// a spotlight.
+/// quadrics; no glass) scattered over the floor, lit by point lights and a spotlight.
 pub fn generated_scene(n: usize, seed: u64) -> Scene {
     let mut rng = Rng(seed);
     let mut objects = Vec::with_capacity(n);

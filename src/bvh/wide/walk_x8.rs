@@ -40,21 +40,12 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8
 
 /// Largest spread of a packet served by the wide packet walk (radians between lane
 /// directions; origins: this fraction of the tree's diagonal); wider packets take the
-/// binary packet walk, whose per-lane box tests cull better than one wide frustum.
-// Measured: bench-trace torus100k, primary rays at N×N pixels (a 4×2 packet spans
-// about 2.2 mrad × 1024/N), every one-signed packet forced through the wide walk
-// (spread ∞), mode=8 vs mode=8b Mrays/s, 1 thread, two runs each at load ~4:
-// N=1024: 17.5/13.7, 15.7/11.4; 512: 9.8/9.2, 15.3/9.9; 256: 7.9/6.5, 7.8/6.2;
-// 128: 4.2/3.9, 4.4/3.7; 96: 3.2/3.6, 2.8/2.6; 64: 1.8/2.4, 1.8/2.1; 16: 0.17/3.3.
-// Incoherent rays sorted into one-signed packets: 0.00 (sic) vs 1.21. Break-even
-// near 23 mrad (N = 96): 15 mrad keeps a margin.
+/// binary packet walk, whose per-lane box tests cull better than one wide frustum. The
+/// two break even near 0.023 (benches/README.md); this keeps a margin.
 pub const FRUSTUM_SPREAD: f32 = 0.015;
 
-/// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`).
-// Measured: octaray render scenes/given.txt (8 objects, one wide node) --size 2048
-// --threads 1, two runs each, wide packet walk for every coherent packet: 1.33,
-// 1.19 s against 1.05, 0.95 s with the binary packet walk (Frustum::new alone 6.9 %
-// of the profile); scenes/mirrors.txt 2.22, 1.90 s against 1.89, 1.69 s.
+/// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`):
+/// in smaller trees building the frustum costs more than the few binary steps it saves.
 pub const WIDE_PACKET_MIN_NODES: usize = 16;
 
 /// Interval bounds of a packet's rays, splatted, for the slab test of eight boxes at once.
@@ -72,8 +63,6 @@ pub(crate) struct Frustum {
 
 /// The least lane of `v` in every lane (a butterfly: three swaps and three
 /// minima). No lane may be NaN (`fast_min`).
-// Tried: a scalar fold over `to_array` (f32::min with its NaN blends): Frustum::new
-// alone took 5.2 % of a perf profile of bench-trace primary mode=8.
 #[inline(always)]
 fn splat_min(v: f32x8) -> f32x8 {
     let a = v.to_array();
@@ -128,8 +117,6 @@ impl Frustum {
         let first = act.bits().trailing_zeros() as usize;
         // one origin for every lane (a camera's packets): its splat is both bounds, no
         // six reductions
-        // Measured: 2250 -> 2225 instructions per packet (counted as for
-        // `block_vertices`).
         let o0 = Vec3x8::splat(r.origin.lane(first));
         let o0 = [o0.x, o0.y, o0.z];
         let apart = act.and_not(o[0].eq8(o0[0]) & o[1].eq8(o0[1]) & o[2].eq8(o0[2]));
@@ -172,11 +159,6 @@ impl Frustum {
         // min(d·r_lo, d·r_hi) is d·r_lo when d >= +0 and d·r_hi when d <= −0 (r_lo and
         // r_hi share their sign, rounding is monotone, ±0 products are equal): one
         // product picked by the sign bit of d, bit for bit the same; max the other way
-        // Measured (valgrind --tool=callgrind, bench-trace torus100k primary mode=8
-        // --reps 1, instructions per packet in `timed_trace`): 2820 with both products
-        // and a min/max, 2771 with one product; the constant planes of `OCT` (runtime
-        // indices before, and the walks not specialised): 2700 -> 2409, and 1 thread,
-        // five interleaved runs, median 21.55 -> 22.23 Mrays/s.
         let entry = |a: usize| {
             let d = bounds[near(a)] - self.o_near[a];
             d * by_sign(d, self.r_hi[a], self.r_lo[a])
@@ -198,9 +180,6 @@ impl Frustum {
     /// The triangles of block `b` whose binary leaf some lane may enter, as bits: all of
     /// them in a block of one binary leaf (its box is the slot's, which the frustum has
     /// passed), else those whose leaf box passes [`Frustum::test`].
-    // Measured (closest-hit walk): 2720 -> 2700 instructions per packet (valgrind
-    // --tool=callgrind, bench-trace torus100k primary mode=8 --reps 1, `timed_trace`),
-    // five interleaved runs median 17.87 -> 18.64 Mrays/s.
     #[inline(always)]
     fn block_candidates<const OCT: u32>(&self, b: &TriBlock, t_hi: f32) -> u32 {
         if b.one_leaf {
@@ -262,10 +241,6 @@ pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
 
 /// The vertices of triangle `j` of a block, splatted for the packet kernel (the block
 /// holds the triangle's floats, copied; one broadcast from memory each).
-// Measured: unpacking a `Triangle32` first (to splat it again in
-// `Triangle32::intersect_x8`) cost ~25 instructions more per triangle test
-// (valgrind --tool=callgrind, bench-trace torus100k primary mode=8 --reps 1:
-// 2409 instructions per packet in `timed_trace`, then 2294).
 #[inline(always)]
 fn block_vertices(b: &TriBlock, j: usize) -> [Vec3x8; 3] {
     // by reference: a `map` over the arrays by value copied each to the stack first

@@ -17,19 +17,13 @@ const DEFINITE_MARGIN: f64 = 1e-8;
 /// relative 1e-5 against rounding. `k` holds the ten coefficients (f64).
 ///
 /// Definite with a margin: each leading principal minor must exceed [`DEFINITE_MARGIN`]
-/// times the sum of its terms' magnitudes, far above their f64 rounding error (~1e-15
-/// of that sum, while the sum stays out of the subnormal range; below it the test
-/// degrades to the minors' signs, and a form that slips through gets half-extents so
-/// large that `BOUNDS_LIMIT` clamps them). A form within rounding of singular (a tilted pair of parallel planes
-/// written with decimal coefficients: exact minors 5.2e-3, 1e-19 and −1.4e-33) could
-/// otherwise get the signs of an ellipsoid, and bounds from the inverse of a nearly
-/// singular matrix that the surface leaves: rays outside them never tested it, so it
-/// and its shadows vanished from the fast path (an independent renderer of the spec
-/// found it; `tests/extremes.rs::quadric_extremes` keeps the case). A form failing
-/// the margin (a strongly elongated ellipsoid tilted off the axes may too) stays
-/// unbounded, in the list beside the tree: that costs time, never a hit. The margin
-/// also keeps the cancellation in the inverse (rounding ~1e-16 over at least 1e-8)
-/// far inside the pad.
+/// times the sum of its terms' magnitudes, far above their f64 rounding error. A form
+/// within rounding of singular (a tilted pair of parallel planes written with decimal
+/// coefficients) could otherwise get the signs of an ellipsoid, and bounds from a
+/// nearly singular inverse that the surface leaves (`tests/extremes.rs::
+/// quadric_extremes`). A form failing the margin stays unbounded, beside the tree:
+/// that costs time, never a hit. The margin also keeps the inverse's cancellation far
+/// inside the pad.
 pub(super) fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     let [a, b, c, d, e, f, g, h, i, _] = *k;
     let m = glam::DMat3::from_cols(
@@ -61,10 +55,8 @@ pub(super) fn ellipsoid_bounds(k: &[f64; 10]) -> Option<Aabb> {
     let centre = -(inv * g) / 2.0;
     // k = −F(c), evaluated as F itself: ∇F(c) = 0, so an error e in the centre (the
     // solve's, ~cond(M)·ε·|c|) changes it only by eᵀMe. The shortcut −(j + g·c/2)
-    // takes e times |g| instead: for a tilted needle (semi-axes 0.01 and 5) 1000
-    // units from the frame's origin, k came out tens of percent small and the box
-    // cut the needle's tip off (found by an independent renderer of the spec). Raised
-    // by a bound on F's own rounding (ten terms summed: γ(12)·Σ|term|), so that far
+    // takes e times |g| instead, and cut the tip off a tilted needle far from the
+    // frame's origin. Raised by a bound on F's own rounding (ten terms summed: γ(12)·Σ|term|), so that far
     // from the origin, where the terms dwarf k, the box grows instead of shrinking.
     let (x, y, z) = (centre.x, centre.y, centre.z);
     let rounding = 12.0 * f64::EPSILON * terms(k, x, y, z, f64::abs);

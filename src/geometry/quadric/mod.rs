@@ -112,19 +112,12 @@ pub fn surface_ref(q: &Quadric, ray: &Ray, t: f64) -> SurfacePoint {
 ///
 /// Why f64: along a ray, c = F(o) grows as |o|² while b² − 4ac stays of the quadric's
 /// own size, so in f32 the discriminant is lost to cancellation when a ray starts far
-/// from a small quadric. Shadow rays from a floor hundreds of units away that passed a
-/// cylinder of radius 0.03 at 12–36 % of its radius still hit it: 141 of 4096 pixels
-/// off, max 30/255, in `fast` and `accurate` at 64² (an independent renderer of the spec
-/// found it; `tests/extremes.rs` keeps the case). An f32 ray is exact in f64, so the
+/// from a small quadric (shadow rays from a distant floor passing a thin cylinder hit
+/// it; `tests/extremes.rs` keeps the case). An f32 ray is exact in f64, so the
 /// roots are as good as the reference's for that ray, and the surface's error bound,
 /// evaluated in f64 at the hit point, measures the point's own distance from the surface
 /// instead of f32's rounding of F far from the origin. Both kernels convert, compute and
 /// round lane for lane alike, so packet and single ray stay bit-equal.
-// Tried: an f32 pre-test on packets, dropping lanes whose f32 discriminant lies below
-// zero by more than a rigorous bound on its error (same images): quadric_hyperboloid
-// 1024², 1 thread, six interleaved pairs, median 0.159 -> 0.188 s. Most lines meet a
-// hyperboloid of one sheet (its roots are then rejected by t or the box), so the test
-// rarely saves the f64 solve it adds to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quadric32 {
     pub coef: [f64; 10],

@@ -3,7 +3,8 @@
 use glam::{DVec3, Vec3};
 use wide::f32x8;
 
-use super::path::{Chain, PathState};
+use super::chain::Chain;
+use super::path::PathState;
 use super::{Settings, Tracer};
 use crate::bvh::Steps;
 use crate::math::packet::{Mask8, RayPacket8, Vec3x8};
@@ -110,6 +111,7 @@ impl<S: Settings> SampleTracer for Tracer<'_, S> {
         let mut steps = Steps::default();
         let c = self.trace_path(&ray, active, &path, &mut scratch.chain, stats, &mut steps);
         stats.quadric_tests += steps.quadrics;
+        stats.node_tests += steps.boxes;
         PacketColors(c)
     }
 }

@@ -195,11 +195,9 @@ impl PacketRenderer {
     /// hit recomputed in f64 from the frame's f64 pixel grid, as the reference
     /// computes it ([`Floor::color_at_within`]). Cameras with integer, axis-aligned
     /// geometry put whole rows of pixel rays exactly on tile lines, where the f32
-    /// rounding of the direction (1e-5 at the floor) picked either tile: 77 % of such
-    /// pixels were wrong (found by an independent renderer, checked in 60-digit
-    /// arithmetic). Snapping the f32 point itself instead (4× its error bound)
-    /// moved near-ties 1e-5 from a line onto the wrong tile. Lanes at (x + k % 4,
-    /// y + k / 4) of `pixel`.
+    /// rounding of the direction picks either tile; snapping the f32 point itself
+    /// would move near-ties onto the wrong tile. Lanes at (x + k % 4, y + k / 4) of
+    /// `pixel` on the sample grid.
     #[inline]
     pub(super) fn camera_tiles(
         &self,

@@ -24,8 +24,9 @@
 use glam::{DVec3, Vec3};
 use wide::f32x8;
 
+use super::chain::Chain;
 use super::gather::Gathered;
-use super::path::{Chain, PathState};
+use super::path::PathState;
 use super::{Offset, PacketRenderer, Settings, Tracer};
 use crate::bvh::Steps;
 use crate::geometry::Hit1;

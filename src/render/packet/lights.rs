@@ -48,13 +48,11 @@ pub(super) struct Light32 {
 /// A spotlight's cone: a point P is inside when the angle θ between the axis and
 /// w = P − Lp is at most the cutoff φ, tested as sin(φ − θ) >= 0, i.e.
 /// |axis × w|·cos φ <= (axis · w)·sin φ, and axis · w >= 0 unless φ >= 90°.
-/// Sines of small angles keep their relative precision where cosines do not: the
-/// test `axis · w >= cos φ·|w|` in f32 resolved angles only to ~0.02° near the axis
-/// (cos φ within an ulp of 1), so a 0.05° spotlight lit a disc twice too wide on
-/// 2 % of a 256² view. In f32 the limit is then the rounded axis and light position,
-/// ~1e-7 rad: still a fifth of a 1e-5° cone, which shifted its disc (3.8 % of the
-/// pixels of a view framed on it). Cones within [`NARROW_CONE_DEG`] of 0° or 180°
-/// are therefore tested in f64 (both found by an independent renderer of the spec).
+/// Sines of small angles keep their relative precision where cosines do not (the test
+/// `axis · w >= cos φ·|w|` in f32 resolves angles only to ~0.02° near the axis). In f32
+/// the limit is then the rounded axis and light position, ~1e-7 rad, a visible part of
+/// a very narrow cone: cones within [`NARROW_CONE_DEG`] of 0° or 180° are tested in
+/// f64.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Cone32 {
     axis: Vec3,

@@ -18,6 +18,7 @@
 //!   the single-ray traversal of the same tree (`single_ray_lanes`).
 
 mod camera;
+mod chain;
 mod gather;
 pub(crate) mod glass;
 mod lights;
@@ -43,7 +44,7 @@ use crate::math::packet::{Cmp8, Vec3x8, offset_origin_x8};
 use crate::scene::{Floor, Glass, Scene};
 use lights::{Cone32, Light32, Mat32};
 
-pub use path::Chain;
+pub use chain::Chain;
 
 /// A scene prepared for the packet path: BVH, materials and lights in one f32 frame
 /// whose origin is the world point `base`, and the options it was built with.

@@ -3,16 +3,12 @@
 
 use wide::f32x8;
 
+use super::chain::Chain;
 use super::{Offset, Settings, Tracer};
 use crate::bvh::Steps;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, RayPacket8, Vec3x8};
 use crate::render::RenderStats;
 use crate::scene::camera::PixelGrid;
-
-/// The mirror chain of a packet: per level the local colour, the weight of the next
-/// level's colour (kr; per channel for glass, whose reflection weight depends on the
-/// wavelength) and the lanes that hit.
-pub type Chain = Vec<(Vec3x8, Vec3x8, Mask8)>;
 
 /// Where a packet sits in its path from the camera (only glass scenes read it).
 #[derive(Clone, Copy, Debug)]
@@ -204,15 +200,6 @@ impl<S: Settings> Tracer<'_, S> {
                 weight *= kr;
             }
         }
-        let (zero, one) = (f32x8::ZERO, f32x8::splat(1.0));
-        let clamp = |v: f32x8| v.max(zero).min(one);
-        chain
-            .iter()
-            .rev()
-            .fold(Vec3x8::ZERO, |deeper, &(local, kr, lanes)| {
-                let c = local + deeper * kr;
-                let c = Vec3x8::new(clamp(c.x), clamp(c.y), clamp(c.z));
-                Vec3x8::select(lanes, c, Vec3x8::ZERO)
-            })
+        chain.fold()
     }
 }
