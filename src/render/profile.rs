@@ -1,8 +1,9 @@
 //! Render profiles: named sets of knobs, each a code-path choice made once per frame,
 //! never tested per ray.
 //!
-//! A profile is a TOML file (`profiles/*.toml`: `reference`, `accurate`, `fast` — the
-//! default — and `preview`); every knob and its default is documented in those files.
+//! A profile is a TOML file (`profiles/*.toml`: `reference`, the oracle, and the ladder
+//! `preview`, `fast` — the default —, `quality` and `accurate`); every knob and its
+//! default is documented in those files.
 //! [`Profile::load`] takes a name (looked up in `./profiles/`, else the copies compiled
 //! into the binary) or a path. Unknown keys and bad values are errors naming
 //! file:line:column and the key.
@@ -13,6 +14,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
+pub use super::frame::Sampler;
 pub use super::options::{PacketOptions, RayOffset, TriangleTest};
 
 /// Which renderer traces the frame.
@@ -24,6 +26,19 @@ pub enum RenderPath {
     /// f32, 8-ray packets through a binned-SAH BVH: the fast path.
     Packet,
 }
+
+/// How a profile samples pixels (`sampler`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SamplerKind {
+    /// The `samples_per_pixel` grid in every pixel.
+    Uniform,
+    /// The pixels' corners, then the grid where they differ by more than `threshold`.
+    Adaptive,
+}
+
+/// The adaptive sampler's threshold when a profile names none.
+pub const DEFAULT_THRESHOLD: f32 = 0.05;
 
 impl TryFrom<String> for RayOffset {
     type Error = String;
@@ -52,6 +67,11 @@ pub struct Profile {
     pub path: RenderPath,
     /// Samples per pixel, a square n² (n × n stratified sub-pixel grid); 1 = pixel centre.
     pub samples_per_pixel: u32,
+    /// The grid in every pixel, or adaptively.
+    pub sampler: SamplerKind,
+    /// The adaptive sampler's threshold: the largest channel difference between a
+    /// pixel's corners (linear, [0, 1]) that leaves the pixel unrefined.
+    pub threshold: f32,
     /// Render at this fraction of the requested size, then upscale (bilinear); 1 = off.
     pub resolution_scale: f64,
     /// Cap on the scene's recursion level; `None` = the scene's own.
@@ -94,6 +114,24 @@ impl TryFrom<f64> for Scale {
     }
 }
 
+/// `threshold`: in [0, 1].
+#[derive(Deserialize)]
+#[serde(try_from = "f64")]
+struct Threshold(f32);
+
+impl TryFrom<f64> for Threshold {
+    type Error = String;
+    fn try_from(t: f64) -> Result<Self, String> {
+        if (0.0..=1.0).contains(&t) {
+            Ok(Threshold(t as f32))
+        } else {
+            Err(format!(
+                "{t}: expected a threshold from 0 to 1 (a fraction of full scale, e.g. 0.02)"
+            ))
+        }
+    }
+}
+
 /// `single_ray_lanes`: 0 to 8.
 #[derive(Deserialize)]
 #[serde(try_from = "u32")]
@@ -132,6 +170,8 @@ impl TryFrom<u32> for Photons {
 struct ProfileFile {
     path: Option<RenderPath>,
     samples_per_pixel: Option<Spp>,
+    sampler: Option<toml::Spanned<SamplerKind>>,
+    threshold: Option<toml::Spanned<Threshold>>,
     resolution_scale: Option<Scale>,
     max_recursion: Option<u32>,
     photons: Option<Photons>,
@@ -163,13 +203,15 @@ pub enum ProfileError {
 const BUILTIN: &[(&str, &str)] = &[
     ("reference", include_str!("../../profiles/reference.toml")),
     ("accurate", include_str!("../../profiles/accurate.toml")),
+    ("quality", include_str!("../../profiles/quality.toml")),
     ("fast", include_str!("../../profiles/fast.toml")),
     ("preview", include_str!("../../profiles/preview.toml")),
 ];
 
 impl Profile {
     /// Names of the built-in profiles (`profiles/*.toml`).
-    pub const NAMES: &'static [&'static str] = &["reference", "accurate", "fast", "preview"];
+    pub const NAMES: &'static [&'static str] =
+        &["reference", "accurate", "quality", "fast", "preview"];
 
     /// The profile used when none is named.
     pub fn default_name() -> &'static str {
@@ -222,10 +264,39 @@ impl Profile {
     /// Parses profile `name` from TOML `text`; `file` names it in errors.
     pub fn from_toml(name: &str, text: &str, file: &str) -> Result<Profile, ProfileError> {
         let f: ProfileFile = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
+        let samples_per_pixel = f.samples_per_pixel.map_or(1, |s| s.0);
+        let sampler = f
+            .sampler
+            .as_ref()
+            .map_or(SamplerKind::Uniform, |s| *s.get_ref());
+        if let (SamplerKind::Uniform, Some(t)) = (sampler, &f.threshold) {
+            return Err(knob_error(
+                text,
+                file,
+                t.span().start,
+                "threshold",
+                "only the adaptive sampler has a threshold (add sampler = \"adaptive\")",
+            ));
+        }
+        if let Some(s) = &f.sampler
+            && sampler == SamplerKind::Adaptive
+            && samples_per_pixel < 4
+        {
+            return Err(knob_error(
+                text,
+                file,
+                s.span().start,
+                "sampler",
+                "the adaptive sampler refines a pixel to its samples_per_pixel grid: \
+                 set samples_per_pixel to 4 or more",
+            ));
+        }
         Ok(Profile {
             name: name.to_string(),
             path: f.path.unwrap_or(RenderPath::Packet),
-            samples_per_pixel: f.samples_per_pixel.map_or(1, |s| s.0),
+            samples_per_pixel,
+            sampler,
+            threshold: f.threshold.map_or(DEFAULT_THRESHOLD, |t| t.into_inner().0),
             resolution_scale: f.resolution_scale.map_or(1.0, |s| s.0),
             max_recursion: f.max_recursion.filter(|&m| m > 0),
             photons: f
@@ -248,6 +319,31 @@ impl Profile {
         (1..=8)
             .find(|n| n * n == self.samples_per_pixel)
             .unwrap_or(1)
+    }
+
+    /// The frame loop's sampler of this profile.
+    pub fn sampler(&self) -> Sampler {
+        let n = self.samples_per_axis();
+        match self.sampler {
+            SamplerKind::Uniform => Sampler::Uniform { n },
+            SamplerKind::Adaptive => Sampler::Adaptive {
+                n,
+                threshold: self.threshold,
+            },
+        }
+    }
+}
+
+/// A knob that contradicts another, at byte `offset` of `text`, as `file:line:column`.
+fn knob_error(text: &str, file: &str, offset: usize, key: &str, message: &str) -> ProfileError {
+    let before = &text[..offset.min(text.len())];
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    ProfileError::Syntax {
+        file: file.to_string(),
+        line: before.matches('\n').count() + 1,
+        column: before[line_start..].chars().count() + 1,
+        key: Some(key.to_string()),
+        message: message.to_string(),
     }
 }
 
