@@ -163,8 +163,9 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
 struct ViewArgs {
     /// Scene file; without it, the assignment's given scene built into the binary.
     scene: Option<PathBuf>,
-    /// Render profile for the window and captures: a name (reference, accurate, fast,
-    /// preview; looked up in ./profiles/, else built in) or a path to a .toml file.
+    /// Render profile for the window and captures: a name (reference, preview, fast,
+    /// quality, accurate; looked up in ./profiles/, else built in) or a path to a .toml
+    /// file.
     /// [default: fast]
     #[arg(long)]
     profile: Option<String>,
@@ -206,8 +207,8 @@ struct RenderArgs {
     /// Vertical field of view in degrees.
     #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
     fov: f64,
-    /// Render profile: a name (reference, accurate, fast, preview; looked up in
-    /// ./profiles/, else built in) or a path to a .toml file.
+    /// Render profile: a name (reference, preview, fast, quality, accurate; looked up
+    /// in ./profiles/, else built in) or a path to a .toml file.
     #[arg(long, default_value = Profile::default_name())]
     profile: String,
     /// Worker threads [default: one per core].

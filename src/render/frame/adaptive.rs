@@ -108,12 +108,15 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
     };
     let total = Mutex::new(RenderStats::default());
     let add = |s: &RenderStats| total.lock().expect("no panics while holding").add(s);
+    let at = (ring.x0, ring.y0);
+    let corners = || first_pass(tracer, &corner_samples, at, (cw, rh + 1), &add);
+    let centres = || first_pass(tracer, &centre_samples, at, (rw, rh), &add);
     let (corners, centres) = with_threads(run.threads, || {
-        let at = (ring.x0, ring.y0);
-        (
-            first_pass(tracer, &corner_samples, at, (cw, rh + 1), &add),
-            first_pass(tracer, &centre_samples, at, (rw, rh), &add),
-        )
+        if parallel() {
+            rayon::join(corners, centres)
+        } else {
+            (corners(), centres())
+        }
     });
     // which pixels of the ring are busy
     let linear = |s: Sum<T>| T::Colors::linear(s, 1);
@@ -126,14 +129,19 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             centres[y * rw + x],
         ]
     };
-    let busy: Vec<bool> = (0..rw * rh)
-        .map(|i| {
-            let c = five(i % rw, i / rw).map(linear);
-            let hi = c.iter().fold(c[0], |a, b| a.max(*b));
-            let lo = c.iter().fold(c[0], |a, b| a.min(*b));
-            (hi - lo).max_element() > threshold as f64
-        })
-        .collect();
+    let is_busy = |i: usize| {
+        let c = five(i % rw, i / rw).map(linear);
+        let hi = c.iter().fold(c[0], |a, b| a.max(*b));
+        let lo = c.iter().fold(c[0], |a, b| a.min(*b));
+        (hi - lo).max_element() > threshold as f64
+    };
+    let busy: Vec<bool> = with_threads(run.threads, || {
+        if parallel() {
+            (0..rw * rh).into_par_iter().map(is_busy).collect()
+        } else {
+            (0..rw * rh).map(is_busy).collect()
+        }
+    });
     let refine = |x: usize, y: usize| {
         if busy[y * rw + x] {
             return true;
