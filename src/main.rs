@@ -63,34 +63,59 @@ enum Command {
     BenchTrace(BenchTraceArgs),
     /// Fly through a scene in a window, ray traced live (keys in the title bar).
     View(ViewArgs),
-    /// Measure each profile against the reference: time, Mrays/s, PSNR, pixels off;
-    /// writes profiles/TRADEOFF.md and profiles/tradeoff.png.
+    /// Measure each profile: time, and error against the true picture (each pixel's area
+    /// average) and against the spec's one-sample image. Without scene files: every
+    /// scenes/*.txt, written to profiles/TRADEOFF.md and profiles/tradeoff.svg; with scene
+    /// files: to stdout, and to --markdown/--plot if given.
     Tradeoff(TradeoffArgs),
 }
 
 #[derive(Args, Debug)]
 struct TradeoffArgs {
-    /// Scene files [default: every scenes/*.txt].
+    /// Scene files [default: every scenes/*.txt, the project's own table].
     scenes: Vec<PathBuf>,
     /// Image side in pixels.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     size: u32,
-    /// Side of the extra given-scene table (reference and fast; 0: none).
+    /// Side of the extra given-scene table (every profile; 0: none).
     #[arg(long, default_value_t = 768, value_parser = clap::value_parser!(u32).range(0..=4096))]
     given_size: u32,
-    /// Profiles, comma-separated names or paths to .toml files.
+    /// Profiles, comma-separated names or paths to .toml files; after `reference`, the
+    /// ladder in order (each should be slower and closer to the true picture).
     #[arg(
         long,
-        default_value = "reference,accurate,fast,preview",
+        default_value = "reference,preview,fast,quality,accurate",
         value_delimiter = ','
     )]
     profiles: Vec<String>,
-    /// Markdown report ("-": none).
-    #[arg(long, default_value = "profiles/TRADEOFF.md")]
-    markdown: PathBuf,
-    /// Plot of PSNR against time ("-": none).
-    #[arg(long, default_value = "profiles/tradeoff.png")]
-    plot: PathBuf,
+    /// Markdown report [default: profiles/TRADEOFF.md without scene files, else none:
+    /// the report goes to stdout] ("-": none).
+    #[arg(long)]
+    markdown: Option<PathBuf>,
+    /// Plot of the error against time, an .svg file [default: profiles/tradeoff.svg
+    /// without scene files, else none] ("-": none).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Directory of cached true pictures [default: $XDG_CACHE_HOME/octaray/truth, or
+    /// ~/.cache/octaray/truth].
+    #[arg(long)]
+    truth_cache: Option<PathBuf>,
+    /// Samples per pixel along each axis of the true picture (the reference path; 16:
+    /// 256 per pixel).
+    #[arg(long, default_value_t = octaray::tradeoff::truth::TRUTH_SAMPLES, value_parser = clap::value_parser!(u32).range(8..=32))]
+    truth_samples: u32,
+    /// Eye position [default: 100,100,50].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<DVec3>,
+    /// Point to look at [default: look along (-1,-1,0)].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    look_at: Option<DVec3>,
+    /// Up hint [default: 0,0,1].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
+    fov: f64,
 }
 
 fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
@@ -99,20 +124,33 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
         .iter()
         .map(|p| load_profile("--profiles", p))
         .collect::<Result<Vec<_>, _>>()?;
-    let scenes = if args.scenes.is_empty() {
+    let own = args.scenes.is_empty();
+    let scenes = if own {
         octaray::tradeoff::default_scenes(Path::new("scenes"))
             .map_err(|e| Failure::input(e.to_string()))?
     } else {
         args.scenes.clone()
     };
-    let out = |p: &PathBuf| (p.as_os_str() != "-").then(|| p.clone());
+    // the project's own table lands in profiles/; a user's only where asked
+    let out = |given: &Option<PathBuf>, own_default: &str| match given {
+        Some(p) if p.as_os_str() == "-" => None,
+        Some(p) => Some(p.clone()),
+        None => own.then(|| PathBuf::from(own_default)),
+    };
+    let camera = camera_of(args.eye, args.look_at, args.up, args.fov)?;
     let opts = octaray::tradeoff::Options {
         scenes,
         profiles,
         size: args.size,
         headline_size: args.given_size,
-        markdown: out(&args.markdown),
-        plot: out(&args.plot),
+        camera,
+        truth_cache: args
+            .truth_cache
+            .clone()
+            .unwrap_or_else(octaray::tradeoff::truth::default_cache_dir),
+        truth_samples: args.truth_samples,
+        markdown: out(&args.markdown, "profiles/TRADEOFF.md"),
+        plot: out(&args.plot, "profiles/tradeoff.svg"),
         command: std::iter::once("octaray".to_string())
             .chain(std::env::args().skip(1))
             .collect::<Vec<_>>()
@@ -126,6 +164,11 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
         },
     })?;
     out!("{md}");
+    for (what, path) in [("report", &opts.markdown), ("plot", &opts.plot)] {
+        if let Some(p) = path {
+            say!("{what} written to {}", p.display());
+        }
+    }
     Ok(())
 }
 
@@ -134,8 +177,9 @@ struct ViewArgs {
     /// Scene file (`-`: standard input); without it, the assignment's given scene
     /// built into the binary.
     scene: Option<PathBuf>,
-    /// Render profile for the window and captures: a name (reference, accurate, fast,
-    /// preview; looked up in ./profiles/, else built in) or a path to a .toml file.
+    /// Render profile for the window and captures: a name (reference, preview, fast,
+    /// quality, accurate; looked up in ./profiles/, else built in) or a path to a .toml
+    /// file.
     /// [default: fast]
     #[arg(long)]
     profile: Option<String>,
@@ -182,8 +226,8 @@ struct RenderArgs {
     /// Vertical field of view in degrees.
     #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
     fov: f64,
-    /// Render profile: a name (reference, accurate, fast, preview; looked up in
-    /// ./profiles/, else built in) or a path to a .toml file.
+    /// Render profile: a name (reference, preview, fast, quality, accurate; looked up
+    /// in ./profiles/, else built in) or a path to a .toml file.
     #[arg(long, default_value = Profile::default_name())]
     profile: String,
     /// Worker threads [default: one per core].
@@ -318,15 +362,25 @@ fn load_profile(option: &str, spec: &str) -> Result<Profile, Failure> {
 }
 
 fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
+    camera_of(args.eye, args.look_at, args.up, args.fov)
+}
+
+/// The camera of `--eye`, `--look-at`, `--up` and `--fov`.
+fn camera_of(
+    eye: Option<DVec3>,
+    look_at: Option<DVec3>,
+    up: Option<DVec3>,
+    fov: f64,
+) -> Result<Camera, Failure> {
     let default = Camera::default();
-    let eye = args.eye.unwrap_or(default.eye);
-    let up = args.up.unwrap_or(default.up);
-    let camera = match args.look_at {
-        Some(target) => Camera::look_at(eye, target, up, args.fov),
-        None => Camera::from_look(eye, default.look, up, args.fov),
+    let eye = eye.unwrap_or(default.eye);
+    let up = up.unwrap_or(default.up);
+    let camera = match look_at {
+        Some(target) => Camera::look_at(eye, target, up, fov),
+        None => Camera::from_look(eye, default.look, up, fov),
     };
     camera.ok_or_else(|| {
-        let look = args.look_at.map_or(default.look, |t| t - eye);
+        let look = look_at.map_or(default.look, |t| t - eye);
         Failure::input(if !look.is_finite() {
             "--eye/--look-at: the view direction overflows (the points are too far apart)"
         } else if look == DVec3::ZERO {

@@ -1,6 +1,6 @@
 //! The one frame loop: a rectangle of a frame rendered alone equals the same pixels of
 //! the whole frame, byte for byte, on every profile and sampling (full frames,
-//! supersampled, reduced resolution, glass with its wavelengths and photon map).
+//! supersampled, adaptive, reduced resolution, glass with its wavelengths and photon map).
 
 use std::path::Path;
 
@@ -28,6 +28,7 @@ fn profiles() -> Vec<Profile> {
         "samples_per_pixel = 9",
         "path = \"reference\"\nsamples_per_pixel = 9",
         "triangle_test = \"moller\"\nshadow_any_hit = false",
+        "sampler = \"adaptive\"\nsamples_per_pixel = 4\nthreshold = 0",
     ] {
         out.push(Profile::from_toml("custom", text, "custom.toml").unwrap());
     }

@@ -284,7 +284,7 @@ fn profile_errors_name_the_key_and_the_allowed_values() {
         ),
         (
             "\"\" = 1",
-            "p.toml:1:1: an empty key: unknown key; the keys are path, samples_per_pixel, \
+            "p.toml:1:1: an empty key: unknown key; the keys are path, samples_per_pixel, sampler, threshold, \
              resolution_scale, max_recursion, photons, single_ray_lanes, triangle_test, \
              ray_offset, shadow_any_hit",
         ),

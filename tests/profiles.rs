@@ -290,32 +290,28 @@ fn max_recursion_caps_mirror_rays() {
     }
 }
 
-/// The bars of issue 5 on every scene in scenes/, at 160 × 160: `fast` PSNR >= 40 dB
-/// and <= 1 % of pixels off by more than 8/255; `accurate` PSNR >= 50 dB and <= 0.1 %
-/// of pixels off by more than 2/255 outside the masks.
+/// The spec's bars on every scene in scenes/, at 160 × 160: `fast` PSNR >= 40 dB and
+/// <= 1 % of pixels off by more than 8/255 against the reference, and at most 0.1 % off
+/// by more than 2/255 outside the masks of legitimate differences.
 #[test]
 fn accuracy_bars_on_every_scene() {
     let size = 160;
     let fast = Profile::by_name("fast").unwrap();
-    let accurate = Profile::by_name("accurate").unwrap();
     let reference = Profile::by_name("reference").unwrap();
     let s = RenderSettings::square(size);
     for (name, scene) in scenes() {
         let want = reference.render(&scene, &s).image;
         let ids = reference_ids(&scene, &s.camera, size, size);
         let f = compare(&want, &fast.render(&scene, &s).image, &ids);
-        let a = compare(&want, &accurate.render(&scene, &s).image, &ids);
         println!(
-            "{name}: fast {:.1} dB, {:.3} % > 8/255; accurate {:.1} dB, {:.3} % > 2/255 unmasked",
+            "{name}: fast {:.1} dB, {:.3} % > 8/255, {:.3} % > 2/255 unmasked",
             f.psnr_db,
             f.percent(f.off8),
-            a.psnr_db,
-            a.percent(a.off2_unmasked)
+            f.percent(f.off2_unmasked)
         );
         assert!(f.psnr_db >= 40.0, "{name} fast: {f:?}");
         assert!(f.percent(f.off8) <= 1.0, "{name} fast: {f:?}");
-        assert!(a.psnr_db >= 50.0, "{name} accurate: {a:?}");
-        assert!(a.percent(a.off2_unmasked) <= 0.1, "{name} accurate: {a:?}");
+        assert!(f.percent(f.off2_unmasked) <= 0.1, "{name} fast: {f:?}");
     }
 }
 

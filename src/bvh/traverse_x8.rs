@@ -79,27 +79,26 @@ fn prefetch(bvh: &Bvh, node: &BvhNode) {
 /// a subtree entered beyond it by every lane cannot hold a hit (nor a tie).
 #[inline(always)]
 fn cull_limit(t: f32x8, m: Mask8) -> f32 {
-    let t = m.select(t, f32x8::splat(f32::NEG_INFINITY)).to_array();
-    let m4 = [
-        t[0].max(t[4]),
-        t[1].max(t[5]),
-        t[2].max(t[6]),
-        t[3].max(t[7]),
-    ];
-    m4[0].max(m4[2]).max(m4[1].max(m4[3])) * FAR_WIDEN
+    fold_lanes(t, m, f32::NEG_INFINITY, f32::max) * FAR_WIDEN
 }
 
 /// Least entry distance over the lanes of `m`.
 #[inline(always)]
 fn least_near(near: f32x8, m: Mask8) -> f32 {
-    let t = m.select(near, f32x8::splat(f32::INFINITY)).to_array();
+    fold_lanes(near, m, f32::INFINITY, f32::min)
+}
+
+/// `op` over the lanes of `m` (`empty` for the others), as a tree of halves.
+#[inline(always)]
+fn fold_lanes(v: f32x8, m: Mask8, empty: f32, op: fn(f32, f32) -> f32) -> f32 {
+    let t = m.select(v, f32x8::splat(empty)).to_array();
     let m4 = [
-        t[0].min(t[4]),
-        t[1].min(t[5]),
-        t[2].min(t[6]),
-        t[3].min(t[7]),
+        op(t[0], t[4]),
+        op(t[1], t[5]),
+        op(t[2], t[6]),
+        op(t[3], t[7]),
     ];
-    m4[0].min(m4[2]).min(m4[1].min(m4[3]))
+    op(op(m4[0], m4[2]), op(m4[1], m4[3]))
 }
 
 /// Trees of at least this many wide nodes trace the lanes of an incoherent packet

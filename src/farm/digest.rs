@@ -21,7 +21,7 @@
 use glam::DVec3;
 
 use crate::render::options::PacketOptions;
-use crate::render::profile::{Profile, RenderPath};
+use crate::render::profile::{Profile, RenderPath, SamplerKind};
 use crate::scene::{Camera, Glass, Material, Object, PointLight, Scene, Shape, SpotLight};
 
 /// FNV-1a, 128 bits.
@@ -250,15 +250,20 @@ fn profile_knobs(profile: &Profile) -> String {
         name: _,
         path,
         samples_per_pixel,
+        sampler,
+        threshold,
         resolution_scale,
         max_recursion,
         photons,
         packet,
     } = profile;
     let mut out = format!(
-        "path {path:?}, samples_per_pixel {samples_per_pixel}, resolution_scale {resolution_scale:?}, \
-         max_recursion {max_recursion:?}, photons {photons}"
+        "path {path:?}, samples_per_pixel {samples_per_pixel}, sampler {sampler:?}, \
+         resolution_scale {resolution_scale:?}, max_recursion {max_recursion:?}, photons {photons}"
     );
+    if *sampler == SamplerKind::Adaptive {
+        out += &format!(", threshold {threshold:?}");
+    }
     if *path == RenderPath::Packet {
         let PacketOptions {
             shadow_any_hit,
@@ -308,9 +313,9 @@ mod tests {
         let base = digest(&scene, &camera, 64, &fast);
         // the same settings give the same digest; the profile's name is not a setting
         assert_eq!(base, digest(&scene.clone(), &camera, 64, &fast));
-        let accurate = Profile::by_name("accurate").unwrap();
-        assert_eq!(fast.packet, accurate.packet);
-        assert_eq!(base, digest(&scene, &camera, 64, &accurate));
+        let mut renamed = fast.clone();
+        renamed.name = "renamed".into();
+        assert_eq!(base, digest(&scene, &camera, 64, &renamed));
         // the scene's own size is not, the frame size is
         let mut other = scene.clone();
         other.pixels = 5;
@@ -338,6 +343,15 @@ mod tests {
             digest(&scene, &camera, 64, &knob("samples_per_pixel = 4"))
         );
         assert_ne!(base, digest(&scene, &camera, 64, &knob("photons = 7")));
+        let adaptive = |t: &str| {
+            let p = knob(&format!(
+                "samples_per_pixel = 16\nsampler = \"adaptive\"\nthreshold = {t}"
+            ));
+            digest(&scene, &camera, 64, &p)
+        };
+        let uniform16 = digest(&scene, &camera, 64, &knob("samples_per_pixel = 16"));
+        assert_ne!(uniform16, adaptive("0.05"));
+        assert_ne!(adaptive("0.05"), adaptive("0.1"));
         assert_ne!(
             base,
             digest(&scene, &camera, 64, &knob("shadow_any_hit = false"))

@@ -273,7 +273,6 @@ pub fn intersect_splat_x8(
     active: Mask8,
     t_max: f32x8,
 ) -> (Mask8, f32x8, f32x8, f32x8) {
-    let zero = f32x8::ZERO;
     // translate the vertices to the ray origin
     // permute so that the largest direction component is z
     let mut p = v.map(|q| r.permute(q - r.origin));
@@ -282,20 +281,32 @@ pub fn intersect_splat_x8(
         q.x += r.shear.x * q.z;
         q.y += r.shear.y * q.z;
     }
+    sheared_x8(p.map(|q| [q.x, q.y, q.z]), r.shear.z, active, t_max)
+}
+
+/// The watertight test from the sheared vertices on, on eight lanes (one ray against
+/// eight triangles or eight rays against one): edge functions, the sign rule, the
+/// distance compared without dividing and its rounding bound. `p`: the vertices
+/// translated to the ray origin, permuted, and sheared in x and y (z not yet scaled);
+/// `shear_z`: 1/d[kz].
+#[inline(always)]
+fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -> Hits8 {
+    let zero = f32x8::ZERO;
     // edge functions
-    let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
-    let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
-    let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
+    let e0 = p[1][0] * p[2][1] - p[1][1] * p[2][0];
+    let e1 = p[2][0] * p[0][1] - p[2][1] * p[0][0];
+    let e2 = p[0][0] * p[1][1] - p[0][1] * p[1][0];
     // reject when the edge functions disagree in sign (zero counts as inside)
     let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
     let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
     let det = e0 + e1 + e2;
-    let valid = active.and_not(any_neg & any_pos) & !det.eq8(zero);
+    let valid = active.and_not(any_neg & any_pos).and_not(det.eq8(zero));
     if valid.none() {
         return (valid, zero, zero, zero);
     }
-    // scaled distance, compared without dividing
-    let z = p.map(|q| q.z * r.shear.z);
+    // scaled distance, compared without dividing (bound 4 ulp above t_max, see
+    // `Triangle32::intersect_1`)
+    let z = p.map(|q| q[2] * shear_z);
     let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
     let sign = det & f32x8::splat(-0.0);
     let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
@@ -310,8 +321,8 @@ pub fn intersect_splat_x8(
     // t must be positive beyond its own rounding error (pbrt-v4's bound)
     let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
     let max_z = amax(z[0], z[1], z[2]);
-    let max_x = amax(p[0].x, p[1].x, p[2].x);
-    let max_y = amax(p[0].y, p[1].y, p[2].y);
+    let max_x = amax(p[0][0], p[1][0], p[2][0]);
+    let max_y = amax(p[0][1], p[1][1], p[2][1]);
     let g = |n| f32x8::splat(gamma32(n));
     let delta_z = g(3) * max_z;
     let delta_x = g(5) * (max_x + max_z);
@@ -415,7 +426,6 @@ impl Triangle8 {
         t_max: f32,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
         debug_assert_eq!(r.axes[2], KZ);
-        let zero = f32x8::ZERO;
         // translate the vertices to the ray origin
         // permute so that the largest direction component is z
         let [kx, ky, kz] = [(KZ + 1) % 3, (KZ + 2) % 3, KZ];
@@ -428,49 +438,7 @@ impl Triangle8 {
         });
         // shear so the ray runs along +z
         let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
-        // edge functions
-        let e0 = p[1][0] * p[2][1] - p[1][1] * p[2][0];
-        let e1 = p[2][0] * p[0][1] - p[2][1] * p[0][0];
-        let e2 = p[0][0] * p[1][1] - p[0][1] * p[1][0];
-        // reject when the edge functions disagree in sign (zero counts as inside)
-        let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
-        let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
-        let det = e0 + e1 + e2;
-        let valid = active.and_not(any_neg & any_pos).and_not(det.eq8(zero));
-        if valid.none() {
-            return (valid, zero, zero, zero);
-        }
-        // scaled distance, compared without dividing (bound 4 ulp above t_max, see
-        // `Triangle32::intersect_1`)
-        let z = p.map(|q| q[2] * r.shear[2]);
-        let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
-        let sign = det & f32x8::splat(-0.0);
-        let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
-        let adet = det.abs();
-        let t_lim = f32x8::splat(t_max * (1.0 + 4.0 * f32::EPSILON));
-        let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
-        if valid.none() {
-            return (valid, zero, zero, zero);
-        }
-        let inv_det = f32x8::splat(1.0) / det;
-        let t = t_scaled * inv_det;
-        // t must be positive beyond its own rounding error (pbrt-v4's bound)
-        let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
-        let max_z = amax(z[0], z[1], z[2]);
-        let max_x = amax(p[0][0], p[1][0], p[2][0]);
-        let max_y = amax(p[0][1], p[1][1], p[2][1]);
-        let g = |n| f32x8::splat(gamma32(n));
-        let delta_z = g(3) * max_z;
-        let delta_x = g(5) * (max_x + max_z);
-        let delta_y = g(5) * (max_y + max_z);
-        let delta_e =
-            f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-        let max_e = amax(e0, e1, e2);
-        let delta_t = f32x8::splat(3.0)
-            * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
-            * inv_det.abs();
-        let valid = valid & t.gt(delta_t) & t.le(f32x8::splat(t_max));
-        (valid, t, e1 * inv_det, e2 * inv_det)
+        sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
     }
 
     /// Lanes of `active` whose triangle meets the ray with 0 < t < t_max.

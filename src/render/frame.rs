@@ -10,6 +10,11 @@
 //! so its value depends on the pixel alone, never on the rectangle, band or thread that
 //! rendered it. Every random number a tracer draws derives from the scene and the
 //! sample's position on the sample grid (wavelengths per sample, photons per scene).
+//!
+//! A [`Sampler`] picks the samples: the uniform `n × n` grid, or the adaptive sampler,
+//! which traces the pixels' corners first and the `n × n` grid only inside pixels whose
+//! corners disagree ([`render_frame`]); its choice for a pixel reads only the corners of
+//! that pixel and of its eight neighbours, which any rectangle computes the same way.
 
 use std::io::IsTerminal;
 use std::sync::Mutex;
@@ -22,6 +27,10 @@ use super::RenderStats;
 use crate::parallel::{parallel, with_threads};
 use crate::scene::Camera;
 use crate::scene::camera::PixelGrid;
+
+mod adaptive;
+
+pub use adaptive::{BUSY_NEIGHBOURS, corner_grid};
 
 /// A half-open rectangle of pixels, [x0, x1) × [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -66,22 +75,71 @@ impl PixelRect {
     }
 }
 
-/// The camera samples of a frame: `n × n` per pixel, the pixel centres of the
-/// `n`×-resolution grid of the same camera (at `n` = 1, the pixel centres).
+/// The camera samples of a frame: `n × n` per pixel, in the cells of the
+/// `n`×-resolution grid of the same camera (at `n` = 1, the pixels): at each cell's
+/// centre (the spec's pixel centres at `n` = 1), or at a point of the cell given by its
+/// [`Pattern`].
 #[derive(Clone, Copy, Debug)]
 pub struct Samples {
-    /// The sample grid, in f64.
+    /// The sample grid (the cells' centres), in f64.
     pub grid: PixelGrid,
     /// Samples per pixel along each axis.
     pub n: u32,
+    /// Where in its cell each sample lies.
+    pub pattern: Pattern,
+}
+
+/// Where each sample of a [`Samples`] lies inside its cell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pattern {
+    /// The cell's centre.
+    Centres,
+    /// A point of the cell given by a hash of the sample's position on the grid and
+    /// `seed` (the same in every frame and rectangle): no regular lattice to alias with a
+    /// regular picture.
+    Jittered { seed: u64 },
 }
 
 impl Samples {
-    /// The samples of a `width × height` frame of `camera`, `n × n` per pixel.
+    /// The samples of a `width × height` frame of `camera`, `n × n` per pixel, at the
+    /// cells' centres.
     pub fn new(camera: &Camera, width: u32, height: u32, n: u32) -> Samples {
         Samples {
             grid: camera.pixel_grid(width * n, height * n),
             n,
+            pattern: Pattern::Centres,
+        }
+    }
+
+    /// Whether every sample lies at its cell's centre.
+    #[inline]
+    pub fn centred(&self) -> bool {
+        self.pattern == Pattern::Centres
+    }
+
+    /// Where sample (x, y) lies from its cell's centre, in cells: each in [−½, ½) (exact
+    /// in f32).
+    #[inline]
+    pub fn offset(&self, x: u32, y: u32) -> [f64; 2] {
+        match self.pattern {
+            Pattern::Centres => [0.0, 0.0],
+            Pattern::Jittered { seed } => {
+                let h = crate::render::spectral::hash64(seed ^ ((y as u64) << 32 | x as u64));
+                let unit = |bits: u64| (bits & 0xff_ffff) as f64 / (1u64 << 24) as f64 - 0.5;
+                [unit(h >> 40), unit(h >> 8)]
+            }
+        }
+    }
+
+    /// The direction of the camera ray of sample (x, y).
+    #[inline]
+    pub fn direction(&self, x: u32, y: u32) -> glam::DVec3 {
+        match self.pattern {
+            Pattern::Centres => self.grid.direction(x as f64, y as f64),
+            _ => {
+                let [dx, dy] = self.offset(x, y);
+                self.grid.direction(x as f64 + dx, y as f64 + dy)
+            }
         }
     }
 }
@@ -156,6 +214,55 @@ impl PixelOut for DVec3 {
     #[inline]
     fn resolve<C: SampleColors>(sum: C::Sum, count: u32) -> Self {
         C::linear(sum, count)
+    }
+}
+
+/// How a frame's pixels are sampled ([`render_frame`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Sampler {
+    /// `n × n` samples per pixel at the centres of its cells; `n` = 1: the pixel centre,
+    /// the spec's image.
+    Uniform { n: u32 },
+    /// Two jittered samples per pixel first (its corners, shared with its neighbours,
+    /// and its centre); a pixel whose five samples differ by more than `threshold` in
+    /// some channel (linear, [0, 1]) is *busy*. A busy pixel, or one with at least
+    /// [`adaptive::BUSY_NEIGHBOURS`] busy neighbours, is then sampled as `Uniform { n }`
+    /// samples it; any other pixel is the mean of its five samples.
+    Adaptive { n: u32, threshold: f32 },
+}
+
+impl Sampler {
+    /// The side of the sample grid inside a pixel (the uniform grid, or the adaptive
+    /// sampler's refinement).
+    pub fn n(&self) -> u32 {
+        match *self {
+            Sampler::Uniform { n } | Sampler::Adaptive { n, .. } => n,
+        }
+    }
+}
+
+/// Renders the pixels `rect` of a `width × height` frame of `camera` into `out` (the
+/// rectangle's pixels, row-major) with `sampler`, and returns the frame's counters.
+#[allow(clippy::too_many_arguments)]
+pub fn render_frame<T: SampleTracer, P: PixelOut>(
+    tracer: &T,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    rect: PixelRect,
+    sampler: Sampler,
+    out: &mut [P],
+    run: Run,
+) -> RenderStats {
+    match sampler {
+        Sampler::Uniform { n } => {
+            let samples = Samples::new(camera, width, height, n);
+            render_rect(tracer, &samples, rect, out, run)
+        }
+        Sampler::Adaptive { n, threshold } => {
+            let frame = PixelRect::full(width, height);
+            adaptive::render(tracer, camera, frame, rect, n, threshold, out, run)
+        }
     }
 }
 
@@ -266,20 +373,17 @@ fn render_band<T: SampleTracer, P: PixelOut>(
     // every sample of the band, then each pixel's sum in one order
     let (sw, sh) = (width * n, rows * n);
     let mut band = vec![<T::Colors as SampleColors>::Sum::default(); sw * sh];
-    for sy in (0..sh).step_by(2) {
-        for sx in (0..sw).step_by(4) {
-            let bits = block_bits(sx, sy, sw, sh);
-            let block = SampleBlock {
-                x: x0 * n as u32 + sx as u32,
-                y: y0 * n as u32 + sy as u32,
-                bits,
-            };
-            let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
-            for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
-                band[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
-            }
-        }
-    }
+    let (sx0, sy0) = (x0 * n as u32, y0 * n as u32);
+    trace_samples(
+        tracer,
+        samples,
+        sx0,
+        sy0,
+        sw,
+        &mut band,
+        &mut scratch,
+        &mut stats,
+    );
     let count = (n * n) as u32;
     for (i, px) in pixels.iter_mut().enumerate() {
         let (r, x) = (i / width, i % width);
@@ -292,8 +396,38 @@ fn render_band<T: SampleTracer, P: PixelOut>(
         }
         *px = P::resolve::<T::Colors>(sum, count);
     }
-    stats.primary_rays += (sw * sh) as u64;
     stats
+}
+
+/// Traces the samples of a rectangle of the sample grid, `sw` wide from sample
+/// (sx0, sy0), as many rows as `out` holds, into `out` (row-major), in blocks of 4 × 2.
+#[allow(clippy::too_many_arguments)]
+fn trace_samples<T: SampleTracer>(
+    tracer: &T,
+    samples: &Samples,
+    sx0: u32,
+    sy0: u32,
+    sw: usize,
+    out: &mut [<T::Colors as SampleColors>::Sum],
+    scratch: &mut T::Scratch,
+    stats: &mut RenderStats,
+) {
+    let sh = out.len() / sw;
+    for sy in (0..sh).step_by(2) {
+        for sx in (0..sw).step_by(4) {
+            let bits = block_bits(sx, sy, sw, sh);
+            let block = SampleBlock {
+                x: sx0 + sx as u32,
+                y: sy0 + sy as u32,
+                bits,
+            };
+            let c = tracer.trace_block(samples, block, scratch, stats);
+            for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
+                out[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
+            }
+        }
+    }
+    stats.primary_rays += out.len() as u64;
 }
 
 fn progress_bar(show: bool, rows: u32) -> ProgressBar {

@@ -131,6 +131,7 @@ impl RenderStats {
 }
 
 /// A finished frame (or the rectangle of it that was asked for) and its counters.
+#[derive(Clone)]
 pub struct Rendered {
     pub image: Framebuffer,
     /// Where `image` lies in the frame.
@@ -139,18 +140,27 @@ pub struct Rendered {
 }
 
 /// A renderer with its settings fixed, as [`prepared::Prepared`] picks it: renders
-/// frames of `n × n` samples per pixel (the one dynamic call per frame).
+/// frames (the one dynamic call per frame).
 pub trait FrameRenderer: Sync {
-    fn render(&self, settings: &RenderSettings, n: u32) -> Rendered;
+    /// A frame of `n × n` stratified samples per pixel.
+    fn render(&self, settings: &RenderSettings, n: u32) -> Rendered {
+        self.render_sampled(settings, frame::Sampler::Uniform { n })
+    }
+
+    /// A frame sampled by `sampler`.
+    fn render_sampled(&self, settings: &RenderSettings, sampler: frame::Sampler) -> Rendered;
 }
 
 impl<T: frame::SampleTracer> FrameRenderer for T {
-    fn render(&self, settings: &RenderSettings, n: u32) -> Rendered {
+    fn render_sampled(&self, settings: &RenderSettings, sampler: frame::Sampler) -> Rendered {
         let start = std::time::Instant::now();
         let rect = settings.rect();
         let mut image = Framebuffer::new(rect.width(), rect.height());
-        let samples = frame::Samples::new(&settings.camera, settings.width, settings.height, n);
-        let mut stats = frame::render_rect(self, &samples, rect, &mut image.pixels, settings.run());
+        let (w, h) = (settings.width, settings.height);
+        let pixels = &mut image.pixels;
+        let run = settings.run();
+        let mut stats =
+            frame::render_frame(self, &settings.camera, w, h, rect, sampler, pixels, run);
         stats.elapsed = start.elapsed();
         Rendered { image, rect, stats }
     }

@@ -5,6 +5,9 @@
 //!
 //! - `samples_per_pixel` = n²: the frame loop's n × n stratified samples per pixel
 //!   ([`super::frame`]); at n = 1 one ray through each pixel centre, the spec's image.
+//! - `sampler`, `threshold`: that grid everywhere (`uniform`), or only inside the pixels
+//!   whose corners differ by more than the threshold (`adaptive`,
+//!   [`super::frame::Sampler`]).
 //! - `resolution_scale`: the frame is rendered at the scaled size, then upscaled
 //!   (bilinear) to the requested one.
 //! - `max_recursion`: caps the recursion level the renderer is built with.
@@ -148,7 +151,7 @@ impl<'a> Prepared<'a> {
     /// whole frame's). `stats.elapsed` covers the frame, not the preparation.
     pub fn render(&self, settings: &RenderSettings) -> Rendered {
         let start = Instant::now();
-        let n = self.profile.samples_per_axis();
+        let sampler = self.profile.sampler();
         let packet;
         let frames: &dyn FrameRenderer = match &self.engine {
             Engine::Reference(r) => &**r,
@@ -161,7 +164,7 @@ impl<'a> Prepared<'a> {
         let scaled = |v: u32| ((v as f64 * scale).round() as u32).clamp(1, v.max(1));
         let (w, h) = (scaled(settings.width), scaled(settings.height));
         let mut out = if (w, h) == (settings.width, settings.height) {
-            frames.render(settings, n)
+            frames.render_sampled(settings, sampler)
         } else {
             // the whole frame at the scaled size, upscaled, then the crop cut out
             let inner = RenderSettings {
@@ -170,7 +173,7 @@ impl<'a> Prepared<'a> {
                 crop: None,
                 ..settings.clone()
             };
-            let small = frames.render(&inner, n);
+            let small = frames.render_sampled(&inner, sampler);
             let full = upscale_bilinear(&small.image, settings.width, settings.height);
             let rect = settings.rect();
             Rendered {
@@ -197,10 +200,10 @@ fn cut(image: &Framebuffer, rect: PixelRect) -> Framebuffer {
     out
 }
 
-/// Bilinear upscale (pixel centres aligned, edges clamped).
+/// Bilinear upscale (pixel centres aligned, edges clamped); rows in parallel.
 pub fn upscale_bilinear(src: &Framebuffer, width: u32, height: u32) -> Framebuffer {
     let mut out = Framebuffer::new(width, height);
-    if src.width == 0 || src.height == 0 {
+    if src.width == 0 || src.height == 0 || width == 0 {
         return out;
     }
     let (sw, sh) = (src.width as usize, src.height as usize);
@@ -210,19 +213,29 @@ pub fn upscale_bilinear(src: &Framebuffer, width: u32, height: u32) -> Framebuff
         (i, (i + 1).min(sn - 1), f - i as f64)
     };
     let cols: Vec<_> = (0..width).map(|x| coord(x, width, sw)).collect();
-    for y in 0..height {
-        let (y0, y1, fy) = coord(y, height, sh);
-        for (x, &(x0, x1, fx)) in cols.iter().enumerate() {
+    let row = |(y, line): (usize, &mut [[u8; 3]])| {
+        let (y0, y1, fy) = coord(y as u32, height, sh);
+        for (px, &(x0, x1, fx)) in line.iter_mut().zip(&cols) {
             let p = |xx: usize, yy: usize| src.pixels[yy * sw + xx];
             let (a, b, c, d) = (p(x0, y0), p(x1, y0), p(x0, y1), p(x1, y1));
-            let mut px = [0u8; 3];
             for k in 0..3 {
                 let top = a[k] as f64 * (1.0 - fx) + b[k] as f64 * fx;
                 let bottom = c[k] as f64 * (1.0 - fx) + d[k] as f64 * fx;
                 px[k] = (top * (1.0 - fy) + bottom * fy).round() as u8;
             }
-            out.pixels[y as usize * width as usize + x] = px;
         }
+    };
+    if crate::parallel::parallel() {
+        use rayon::prelude::*;
+        out.pixels
+            .par_chunks_mut(width as usize)
+            .enumerate()
+            .for_each(row);
+    } else {
+        out.pixels
+            .chunks_mut(width as usize)
+            .enumerate()
+            .for_each(row);
     }
     out
 }

@@ -1,8 +1,9 @@
 //! Render profiles: named sets of knobs, each a code-path choice made once per frame,
 //! never tested per ray.
 //!
-//! A profile is a TOML file (`profiles/*.toml`: `reference`, `accurate`, `fast` — the
-//! default — and `preview`); every knob and its default is documented in those files.
+//! A profile is a TOML file (`profiles/*.toml`: `reference`, the oracle, and the ladder
+//! `preview`, `fast` — the default —, `quality` and `accurate`); every knob and its
+//! default is documented in those files.
 //! [`Profile::load`] takes a name (looked up in `./profiles/`, else the copies compiled
 //! into the binary) or a path. Unknown keys and bad values are errors naming
 //! file:line:column and the key.
@@ -13,6 +14,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
+pub use super::frame::Sampler;
 pub use super::options::{PacketOptions, RayOffset, TriangleTest};
 use crate::scene::parse::MAX_RECURSION_LEVEL;
 use crate::scene::text::escaped;
@@ -26,6 +28,19 @@ pub enum RenderPath {
     /// f32, 8-ray packets through a binned-SAH BVH: the fast path.
     Packet,
 }
+
+/// How a profile samples pixels (`sampler`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SamplerKind {
+    /// The `samples_per_pixel` grid in every pixel.
+    Uniform,
+    /// The pixels' corners, then the grid where they differ by more than `threshold`.
+    Adaptive,
+}
+
+/// The adaptive sampler's threshold when a profile names none.
+pub const DEFAULT_THRESHOLD: f32 = 0.05;
 
 impl TryFrom<String> for RayOffset {
     type Error = String;
@@ -54,6 +69,11 @@ pub struct Profile {
     pub path: RenderPath,
     /// Samples per pixel, a square n² (n × n stratified sub-pixel grid); 1 = pixel centre.
     pub samples_per_pixel: u32,
+    /// The grid in every pixel, or adaptively.
+    pub sampler: SamplerKind,
+    /// The adaptive sampler's threshold: the largest channel difference between a
+    /// pixel's corners (linear, [0, 1]) that leaves the pixel unrefined.
+    pub threshold: f32,
     /// Render at this fraction of the requested size, then upscale (bilinear); 1 = off.
     pub resolution_scale: f64,
     /// Cap on the scene's recursion level; `None` = the scene's own.
@@ -87,13 +107,15 @@ pub enum ProfileError {
 const BUILTIN: &[(&str, &str)] = &[
     ("reference", include_str!("../../profiles/reference.toml")),
     ("accurate", include_str!("../../profiles/accurate.toml")),
+    ("quality", include_str!("../../profiles/quality.toml")),
     ("fast", include_str!("../../profiles/fast.toml")),
     ("preview", include_str!("../../profiles/preview.toml")),
 ];
 
 impl Profile {
     /// Names of the built-in profiles (`profiles/*.toml`).
-    pub const NAMES: &'static [&'static str] = &["reference", "accurate", "fast", "preview"];
+    pub const NAMES: &'static [&'static str] =
+        &["reference", "accurate", "quality", "fast", "preview"];
 
     /// The profile used when none is named.
     pub fn default_name() -> &'static str {
@@ -150,11 +172,16 @@ impl Profile {
             name: name.to_string(),
             path: RenderPath::Packet,
             samples_per_pixel: 1,
+            sampler: SamplerKind::Uniform,
+            threshold: DEFAULT_THRESHOLD,
             resolution_scale: 1.0,
             max_recursion: None,
             photons: super::caustic::CausticSettings::default().photons,
             packet: PacketOptions::default(),
         };
+        // where `sampler` and `threshold` were set, for the checks that need every key
+        let mut sampler_at = None;
+        let mut threshold_at = None;
         for (key, value) in table.get_ref().iter() {
             let key_span = key.span();
             let key: &str = key.get_ref();
@@ -192,6 +219,22 @@ impl Profile {
                         .ok_or_else(|| {
                             bad("a square number of samples from 1 to 64 (1, 4, 9, 16, 25, 36, 49 or 64)")
                         })? as u32
+                }
+                "sampler" => {
+                    p.sampler = match string(value) {
+                        Some("uniform") => SamplerKind::Uniform,
+                        Some("adaptive") => SamplerKind::Adaptive,
+                        _ => return Err(bad("\"uniform\" or \"adaptive\"")),
+                    };
+                    sampler_at = Some(span.start);
+                }
+                "threshold" => {
+                    p.threshold = number(value)
+                        .filter(|t| (0.0..=1.0).contains(t))
+                        .ok_or_else(|| {
+                            bad("a threshold from 0 to 1 (a fraction of full scale, e.g. 0.02)")
+                        })? as f32;
+                    threshold_at = Some(span.start);
                 }
                 "resolution_scale" => {
                     p.resolution_scale = number(value)
@@ -242,6 +285,33 @@ impl Profile {
                 }
             }
         }
+        let contradiction = |offset: usize, key: &str, message: &str| {
+            let (line, column) = line_column(text, offset);
+            ProfileError::Syntax {
+                file: file.to_string(),
+                line,
+                column,
+                key: Some(key.to_string()),
+                message: message.to_string(),
+            }
+        };
+        if let (SamplerKind::Uniform, Some(at)) = (p.sampler, threshold_at) {
+            return Err(contradiction(
+                at,
+                "threshold",
+                "only the adaptive sampler has a threshold (add sampler = \"adaptive\")",
+            ));
+        }
+        if let (SamplerKind::Adaptive, Some(at)) = (p.sampler, sampler_at)
+            && p.samples_per_pixel < 4
+        {
+            return Err(contradiction(
+                at,
+                "sampler",
+                "the adaptive sampler refines a pixel to its samples_per_pixel grid: \
+                 set samples_per_pixel to 4 or more",
+            ));
+        }
         Ok(p)
     }
 
@@ -250,6 +320,18 @@ impl Profile {
         (1..=8)
             .find(|n| n * n == self.samples_per_pixel)
             .unwrap_or(1)
+    }
+
+    /// The frame loop's sampler of this profile.
+    pub fn sampler(&self) -> Sampler {
+        let n = self.samples_per_axis();
+        match self.sampler {
+            SamplerKind::Uniform => Sampler::Uniform { n },
+            SamplerKind::Adaptive => Sampler::Adaptive {
+                n,
+                threshold: self.threshold,
+            },
+        }
     }
 }
 
@@ -263,9 +345,11 @@ fn key_prefix(key: Option<&str>) -> String {
 }
 
 /// The keys of a profile file, in the order of `profiles/*.toml`.
-const KEYS: [&str; 9] = [
+const KEYS: [&str; 11] = [
     "path",
     "samples_per_pixel",
+    "sampler",
+    "threshold",
     "resolution_scale",
     "max_recursion",
     "photons",

@@ -561,7 +561,7 @@ impl SampleTracer for Reference<'_> {
         for (k, c) in out.iter_mut().enumerate() {
             if block.bits >> k & 1 == 1 {
                 let (x, y) = (block.x + k as u32 % 4, block.y + k as u32 / 4);
-                let ray = Ray::new(grid.eye, grid.direction(x as f64, y as f64));
+                let ray = Ray::new(grid.eye, samples.direction(x, y));
                 *c = self.trace_pixel(&ray, x, y, stats);
             }
         }

@@ -32,13 +32,19 @@ impl CameraPackets {
         }
     }
 
-    /// The packet of `block`: lane k through sample (x + k % 4, y + k / 4).
+    /// The packet of `block` of `samples`: lane k through sample (x + k % 4, y + k / 4).
     #[inline]
-    pub(crate) fn packet(&self, block: SampleBlock) -> RayPacket8 {
+    pub(crate) fn packet(&self, block: SampleBlock, samples: &Samples) -> RayPacket8 {
         let lane_x = f32x8::new([0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0]);
         let lane_y = f32x8::new([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
-        let i = lane_x + f32x8::splat(block.x as f32);
-        let j = lane_y + f32x8::splat(block.y as f32);
+        let mut i = lane_x + f32x8::splat(block.x as f32);
+        let mut j = lane_y + f32x8::splat(block.y as f32);
+        if !samples.centred() {
+            let at = |k: u32| samples.offset(block.x + k % 4, block.y + k / 4);
+            let o: [[f64; 2]; 8] = std::array::from_fn(|k| at(k as u32));
+            i += f32x8::new(o.map(|v| v[0] as f32));
+            j += f32x8::new(o.map(|v| v[1] as f32));
+        }
         let p =
             Vec3x8::splat(self.top_left) + Vec3x8::splat(self.du) * i + Vec3x8::splat(self.dv) * j;
         let d = p * (f32x8::splat(1.0) / p.length());
@@ -105,9 +111,9 @@ impl<S: Settings> SampleTracer for Tracer<'_, S> {
     ) -> PacketColors {
         let camera =
             (scratch.camera).get_or_insert_with(|| CameraPackets::new(&samples.grid, self.base));
-        let ray = camera.packet(block);
+        let ray = camera.packet(block, samples);
         let active = Mask8::from_bits(block.bits);
-        let path = PathState::camera([block.x, block.y], Some(samples.grid));
+        let path = PathState::camera([block.x, block.y], Some(*samples));
         let mut steps = Steps::default();
         let c = self.trace_path(&ray, active, &path, &mut scratch.chain, stats, &mut steps);
         stats.quadric_tests += steps.quadrics;

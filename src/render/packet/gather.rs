@@ -9,8 +9,8 @@ use crate::geometry::floor;
 use crate::geometry::{PrimKind, Surface8, prim_code, split_code};
 use crate::math::Ray;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
+use crate::render::frame::Samples;
 use crate::scene::Floor;
-use crate::scene::camera::PixelGrid;
 
 /// The per-lane surface data a level's shading needs, gathered for the winners.
 pub(super) struct Gathered {
@@ -204,7 +204,7 @@ impl PacketRenderer {
         ray: &RayPacket8,
         hit: &HitPacket8,
         lanes: Mask8,
-        grid: &PixelGrid,
+        grid: &Samples,
         pixel: [u32; 2],
         g: &mut Gathered,
     ) {
@@ -240,7 +240,7 @@ impl PacketRenderer {
 
     /// The lanes `near` of [`PacketRenderer::camera_tiles`], recomputed in f64.
     #[cold]
-    fn camera_tiles_f64(&self, near: Mask8, grid: &PixelGrid, pixel: [u32; 2], g: &mut Gathered) {
+    fn camera_tiles_f64(&self, near: Mask8, samples: &Samples, pixel: [u32; 2], g: &mut Gathered) {
         let mut color = [g.color.x, g.color.y, g.color.z].map(|v| v.to_array());
         for k in 0..8 {
             if !near.lane(k) {
@@ -248,7 +248,7 @@ impl PacketRenderer {
             }
             // the reference's camera ray, floor hit and colour
             let (i, j) = (pixel[0] + k as u32 % 4, pixel[1] + k as u32 / 4);
-            let ray = Ray::new(grid.eye, grid.direction(i as f64, j as f64));
+            let ray = Ray::new(samples.grid.eye, samples.direction(i, j));
             let Some(t) = floor::intersect_ref(&ray, f64::INFINITY) else {
                 continue;
             };

@@ -8,7 +8,7 @@ use super::{Offset, Settings, Tracer};
 use crate::bvh::Steps;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, RayPacket8, Vec3x8};
 use crate::render::RenderStats;
-use crate::scene::camera::PixelGrid;
+use crate::render::frame::Samples;
 
 /// Where a packet sits in its path from the camera (only glass scenes read it).
 #[derive(Clone, Copy, Debug)]
@@ -28,11 +28,11 @@ pub(super) struct PathState {
     /// The frame's pixel grid in f64, for camera packets whose lanes are `pixel`'s:
     /// their floor hits near a tile line are recomputed from it
     /// (`gather::camera_tiles`).
-    pub grid: Option<PixelGrid>,
+    pub grid: Option<Samples>,
 }
 
 impl PathState {
-    pub fn camera(pixel: [u32; 2], grid: Option<PixelGrid>) -> PathState {
+    pub fn camera(pixel: [u32; 2], grid: Option<Samples>) -> PathState {
         PathState {
             level: 1,
             lambda: None,
