@@ -164,6 +164,10 @@ mod tests {
                 let kr: [[f32; 3]; 8] = std::array::from_fn(|_| [rnd() * kr_max; 3]);
                 let v = |a: &[[f32; 3]; 8]| Vec3x8::from_lanes(&a.map(glam::Vec3::from));
                 chain.push((v(&local), v(&kr), Mask8::from_bits(alive)));
+                assert!(
+                    chain.levels.len() <= CHAIN_LEVELS,
+                    "memory bounded by the level count"
+                );
                 exact.push((
                     local.map(|c| c.map(f64::from)),
                     kr.map(|c| c.map(f64::from)),
