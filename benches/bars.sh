@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # The issue's speed bars in one run, peers and octaray back to back (ratios only mean
 # something within one run on a shared machine). Usage, from the repository root:
-#   ../shared/peers/embree/run.sh /tmp/embree-peer   # once: builds bench_e3, makes the data
+#   benches/embree/run.sh /tmp/embree-peer          # once: builds bench_e3, makes the data
 #   apt-get install povray hyperfine                 # once
-#   benches/bars.sh [/tmp/embree-peer] [../shared/peers/povray]
+#   benches/bars.sh [/tmp/embree-peer] [benches/povray]
 set -euo pipefail
 peer=${1:-/tmp/embree-peer}
-pov=${2:-../shared/peers/povray}
+pov=${2:-benches/povray}
 cargo build --release -q
 o=$PWD/target/release/octaray
 tmp=$(mktemp -d)
@@ -35,7 +35,7 @@ if command -v povray >/dev/null; then
     "povray +I$pov/assignment_scene.pov +O$tmp/pov.png +FN +W768 +H768 -A +WT2 -D File_Gamma=1.0 Declare=RL=4" \
     "$o render $pov/assignment_scene.txt --size 768 --eye 100,100,50 --look-at 0,0,0 --threads 2 -o $tmp/o.bmp"
   cat "$tmp/pov.md"
-  # issue 6: the prism scene against POV-Ray's photon-mapped prism, 768², 2 threads each
+  # the prism scene against POV-Ray's photon-mapped prism, 768², 2 threads each
   hyperfine -w 1 -r 3 --prepare "$fresh" --export-markdown "$tmp/prism.md" \
     "povray +I$pov/prism_dispersion.pov +O$tmp/povprism.png +FN +W768 +H768 -A +WT2 -D -GA File_Gamma=1.0" \
     "$o render scenes/prism_povray.txt --eye 10,-110,95 --look-at 30,0,8 --fov 60 --size 768 --threads 2 -o $tmp/op.png"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The mesh bars of issue 20 in interleaved rounds: per round and mesh, the Embree harness
+# The mesh figures against Embree in interleaved rounds: per round and mesh, the Embree harness
 # (benches/embree, modes 1/8/16, closest hit and shadow rays) then octaray bench-trace on the
 # same work, 1 thread; prints every line, then the median Mrays/s of each cell over the rounds
 # and octaray's best mode over Embree's best mode. Usage, from the repository root:

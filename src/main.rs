@@ -735,8 +735,8 @@ fn warn_caustic_pairs(scene: &Scene, profile: &Profile) {
     }
 }
 
-/// The warning where the packet path's f32 loses the scene's smallest object (issue 5:
-/// where the fast path cannot hold, say so and name the profile that does).
+/// The warning where the packet path's f32 loses the scene's smallest object: where the
+/// fast path cannot hold, say so and name the profile that does.
 fn warn_f32_detail(scene: &octaray::scene::Scene, prepared: &octaray::render::prepared::Prepared) {
     if let Some(d) = prepared.detail_below_f32() {
         say!("{}", d.warning(scene, &prepared.profile().name));

@@ -1,5 +1,5 @@
 //! Profiles: every `profiles/*.toml` loads, bad files are refused with file:line:column
-//! and the key, the frame-level knobs do what they say, and the accuracy bars of issue 5
+//! and the key, the frame-level knobs do what they say, and the accuracy bars of the profiles
 //! hold on small renders of every scene in `scenes/` (no timing here: see
 //! `octaray tradeoff`).
 

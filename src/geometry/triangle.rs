@@ -275,13 +275,23 @@ pub fn intersect_splat_x8(
 ) -> (Mask8, f32x8, f32x8, f32x8) {
     // translate the vertices to the ray origin
     // permute so that the largest direction component is z
-    let mut p = v.map(|q| r.permute(q - r.origin));
+    // (an explicit array: `map` here is left as an outlined call in the any-hit walk)
+    let mut p = [
+        r.permute(v[0] - r.origin),
+        r.permute(v[1] - r.origin),
+        r.permute(v[2] - r.origin),
+    ];
     // shear so the ray runs along +z
     for q in &mut p {
         q.x += r.shear.x * q.z;
         q.y += r.shear.y * q.z;
     }
-    sheared_x8(p.map(|q| [q.x, q.y, q.z]), r.shear.z, active, t_max)
+    let p = [
+        [p[0].x, p[0].y, p[0].z],
+        [p[1].x, p[1].y, p[1].z],
+        [p[2].x, p[2].y, p[2].z],
+    ];
+    sheared_x8(p, r.shear.z, active, t_max)
 }
 
 /// The watertight test from the sheared vertices on, on eight lanes (one ray against
@@ -306,7 +316,7 @@ fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -
     }
     // scaled distance, compared without dividing (bound 4 ulp above t_max, see
     // `Triangle32::intersect_1`)
-    let z = p.map(|q| q[2] * shear_z);
+    let z = [p[0][2] * shear_z, p[1][2] * shear_z, p[2][2] * shear_z];
     let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
     let sign = det & f32x8::splat(-0.0);
     let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed

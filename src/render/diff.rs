@@ -5,7 +5,7 @@
 //! (a channel jumps by more than [`EDGE_JUMP`] to a neighbour: shadow edges, the
 //! spotlight cone edge, checker tile edges, reflections of them). A pixel is *masked*
 //! if it or one of its 8 neighbours crosses such a boundary. Differences outside the
-//! masks are bug candidates (`../shared/robustness.md`).
+//! masks are bug candidates.
 
 use super::reference::{Reference, Target};
 use crate::math::Ray;
