@@ -188,25 +188,11 @@ pub fn parse_camera_path(text: &str, file: &str) -> Result<Vec<PathCamera>, Came
     Ok(cameras)
 }
 
-/// The lines of `text` with their 1-based numbers: a line ends at LF, CRLF or a lone CR.
+/// The lines of `text` with their 1-based numbers (the scene format's line ends).
 fn lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    let mut rest = Some(text);
-    let mut number = 0;
-    std::iter::from_fn(move || {
-        let s = rest?;
-        number += 1;
-        match s.find(['\n', '\r']) {
-            Some(i) => {
-                let skip = if s[i..].starts_with("\r\n") { 2 } else { 1 };
-                rest = Some(&s[i + skip..]);
-                Some((number, &s[..i]))
-            }
-            None => {
-                rest = None;
-                Some((number, s))
-            }
-        }
-    })
+    super::text::lines(text)
+        .enumerate()
+        .map(|(i, l)| (i + 1, l))
 }
 
 /// The tokens of one line and their 1-based columns (in characters): split at
