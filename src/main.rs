@@ -104,18 +104,8 @@ struct TradeoffArgs {
     /// 256 per pixel).
     #[arg(long, default_value_t = octaray::tradeoff::truth::TRUTH_SAMPLES, value_parser = clap::value_parser!(u32).range(8..=32))]
     truth_samples: u32,
-    /// Eye position [default: 100,100,50].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    eye: Option<DVec3>,
-    /// Point to look at [default: look along (-1,-1,0)].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    look_at: Option<DVec3>,
-    /// Up hint [default: 0,0,1].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    up: Option<DVec3>,
-    /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
-    fov: f64,
+    #[command(flatten)]
+    camera: CameraArgs,
 }
 
 fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
@@ -137,7 +127,7 @@ fn run_tradeoff(args: &TradeoffArgs) -> Result<(), Failure> {
         Some(p) => Some(p.clone()),
         None => own.then(|| PathBuf::from(own_default)),
     };
-    let camera = camera_of(args.eye, args.look_at, args.up, args.fov)?;
+    let camera = camera_of(&args.camera)?;
     let opts = octaray::tradeoff::Options {
         scenes,
         profiles,
@@ -214,18 +204,8 @@ struct RenderArgs {
     /// (default: the scene's `pixels`, square). The field of view is vertical.
     #[arg(long, value_parser = parse_render_size)]
     size: Option<viewer::Size>,
-    /// Eye position [default: 100,100,50].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    eye: Option<DVec3>,
-    /// Point to look at [default: look along (-1,-1,0)].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    look_at: Option<DVec3>,
-    /// Up hint [default: 0,0,1].
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    up: Option<DVec3>,
-    /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 80.0, value_parser = parse_fov)]
-    fov: f64,
+    #[command(flatten)]
+    camera: CameraArgs,
     /// Render profile: a name (reference, preview, fast, quality, accurate; looked up
     /// in ./profiles/, else built in) or a path to a .toml file.
     #[arg(long, default_value = Profile::default_name())]
@@ -361,17 +341,49 @@ fn load_profile(option: &str, spec: &str) -> Result<Profile, Failure> {
     Profile::load(spec).map_err(|e| Failure::input(format!("{option}: {e}")))
 }
 
+/// `--eye`, `--look-at`, `--up` and `--fov` (of `render` and `tradeoff`).
+#[derive(Args, Debug, Clone, Copy)]
+struct CameraArgs {
+    /// Eye position [default: 100,100,50].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<DVec3>,
+    /// Point to look at [default: look along (-1,-1,0)].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    look_at: Option<DVec3>,
+    /// Up hint [default: 0,0,1].
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = DEFAULT_FOV, value_parser = parse_fov)]
+    fov: f64,
+}
+
+/// `--fov` when none is given (the assignment's camera).
+const DEFAULT_FOV: f64 = 80.0;
+
+impl Default for CameraArgs {
+    fn default() -> Self {
+        CameraArgs {
+            eye: None,
+            look_at: None,
+            up: None,
+            fov: DEFAULT_FOV,
+        }
+    }
+}
+
 fn camera(args: &RenderArgs) -> Result<Camera, Failure> {
-    camera_of(args.eye, args.look_at, args.up, args.fov)
+    camera_of(&args.camera)
 }
 
 /// The camera of `--eye`, `--look-at`, `--up` and `--fov`.
-fn camera_of(
-    eye: Option<DVec3>,
-    look_at: Option<DVec3>,
-    up: Option<DVec3>,
-    fov: f64,
-) -> Result<Camera, Failure> {
+fn camera_of(args: &CameraArgs) -> Result<Camera, Failure> {
+    let CameraArgs {
+        eye,
+        look_at,
+        up,
+        fov,
+    } = *args;
     let default = Camera::default();
     let eye = eye.unwrap_or(default.eye);
     let up = up.unwrap_or(default.up);
@@ -878,7 +890,6 @@ fn main() -> ExitCode {
         Some(Command::View(args)) => run_view(&args),
         Some(Command::Tradeoff(args)) => run_tradeoff(&args),
         None => run_render(&RenderArgs {
-            fov: 80.0,
             profile: Profile::default_name().into(),
             ..RenderArgs::default()
         }),
