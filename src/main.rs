@@ -422,6 +422,21 @@ fn parse_render_size(s: &str) -> Result<viewer::Size, String> {
     })
 }
 
+/// The scene of `render` with its name and the image size: `--size`, else the scene's
+/// `pixels` (refused where that is over the limit).
+fn load_sized(args: &RenderArgs) -> Result<(Scene, String, viewer::Size), Failure> {
+    let (parsed, name) = load(args.scene.as_deref())?;
+    if let (None, Some(e)) = (args.size, &parsed.too_large) {
+        return Err(Failure::input(e.to_string()));
+    }
+    let scene = parsed.scene;
+    let size = args.size.unwrap_or(viewer::Size {
+        width: scene.pixels,
+        height: scene.pixels,
+    });
+    Ok((scene, name, size))
+}
+
 fn run_render(args: &RenderArgs) -> Result<(), Failure> {
     if args.camera_path.is_some() {
         return run_frames(args);
@@ -446,15 +461,7 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         );
         return Ok(());
     }
-    let (parsed, name) = load(args.scene.as_deref())?;
-    if let (None, Some(e)) = (args.size, &parsed.too_large) {
-        return Err(Failure::input(e.to_string()));
-    }
-    let scene = parsed.scene;
-    let size = args.size.unwrap_or(viewer::Size {
-        width: scene.pixels,
-        height: scene.pixels,
-    });
+    let (scene, name, size) = load_sized(args)?;
     let settings = RenderSettings {
         width: size.width,
         height: size.height,
@@ -659,15 +666,7 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::input(format!("--frames: {}: {e}", path_file.display())))?;
     check_output(&pattern.name(first), true)
         .map_err(|e| Failure::input(format!("--output: {e}")))?;
-    let (parsed, name) = load(args.scene.as_deref())?;
-    if let (None, Some(e)) = (args.size, &parsed.too_large) {
-        return Err(Failure::input(e.to_string()));
-    }
-    let scene = parsed.scene;
-    let size = args.size.unwrap_or(viewer::Size {
-        width: scene.pixels,
-        height: scene.pixels,
-    });
+    let (scene, name, size) = load_sized(args)?;
     let profile = load_profile("--profile", &args.profile)?;
     for k in first..=last {
         let out = pattern.name(k);
