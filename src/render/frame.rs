@@ -295,6 +295,28 @@ fn block_bits(x: usize, y: usize, width: usize, rows: usize) -> u32 {
         .fold(0, |b, l| b | 1 << l)
 }
 
+/// Calls `f` on the 4 × 2 blocks covering a `width` × `rows` grid whose top-left sample
+/// is (x0, y0), row by row, with each block's place in the grid.
+#[inline(always)]
+fn for_each_block(
+    x0: u32,
+    y0: u32,
+    width: usize,
+    rows: usize,
+    mut f: impl FnMut(usize, usize, SampleBlock),
+) {
+    for y in (0..rows).step_by(2) {
+        for x in (0..width).step_by(4) {
+            let block = SampleBlock {
+                x: x0 + x as u32,
+                y: y0 + y as u32,
+                bits: block_bits(x, y, width, rows),
+            };
+            f(x, y, block);
+        }
+    }
+}
+
 /// Renders the pixels `rect` of the frame whose samples are `samples` into `out` (the
 /// rectangle's pixels, row-major), and returns the frame's counters.
 pub fn render_rect<T: SampleTracer, P: PixelOut>(
@@ -345,28 +367,20 @@ fn render_band<T: SampleTracer, P: PixelOut>(
     let rows = pixels.len() / width;
     let n = samples.n as usize;
     if n == 1 {
-        for py in (0..rows).step_by(2) {
-            for px in (0..width).step_by(4) {
-                let bits = block_bits(px, py, width, rows);
-                let block = SampleBlock {
-                    x: x0 + px as u32,
-                    y: y0 + py as u32,
-                    bits,
-                };
-                let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
-                let p = P::block(&c);
-                if bits == 0xff {
-                    for row in 0..2 {
-                        let at = (py + row) * width + px;
-                        pixels[at..at + 4].copy_from_slice(&p[4 * row..4 * row + 4]);
-                    }
-                } else {
-                    for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
-                        pixels[(py + lane / 4) * width + px + lane % 4] = p[lane];
-                    }
+        for_each_block(x0, y0, width, rows, |px, py, block| {
+            let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
+            let p = P::block(&c);
+            if block.bits == 0xff {
+                for row in 0..2 {
+                    let at = (py + row) * width + px;
+                    pixels[at..at + 4].copy_from_slice(&p[4 * row..4 * row + 4]);
+                }
+            } else {
+                for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
+                    pixels[(py + lane / 4) * width + px + lane % 4] = p[lane];
                 }
             }
-        }
+        });
         stats.primary_rays += pixels.len() as u64;
         return stats;
     }
@@ -413,20 +427,12 @@ fn trace_samples<T: SampleTracer>(
     stats: &mut RenderStats,
 ) {
     let sh = out.len() / sw;
-    for sy in (0..sh).step_by(2) {
-        for sx in (0..sw).step_by(4) {
-            let bits = block_bits(sx, sy, sw, sh);
-            let block = SampleBlock {
-                x: sx0 + sx as u32,
-                y: sy0 + sy as u32,
-                bits,
-            };
-            let c = tracer.trace_block(samples, block, scratch, stats);
-            for lane in (0..8).filter(|l| bits >> l & 1 == 1) {
-                out[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
-            }
+    for_each_block(sx0, sy0, sw, sh, |sx, sy, block| {
+        let c = tracer.trace_block(samples, block, scratch, stats);
+        for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
+            out[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
         }
-    }
+    });
     stats.primary_rays += out.len() as u64;
 }
 
