@@ -30,7 +30,7 @@ use crate::scene::camera::PixelGrid;
 
 mod adaptive;
 
-pub use adaptive::{BUSY_NEIGHBOURS, corner_grid};
+pub use adaptive::corner_grid;
 
 /// A half-open rectangle of pixels, [x0, x1) × [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -13,6 +13,9 @@
 //! a crop equals the same pixels of the whole frame.
 
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::DVec3;
 
 use rayon::prelude::*;
 
@@ -26,10 +29,6 @@ use crate::scene::camera::PixelGrid;
 
 /// Pixel rows per parallel task (and sample rows of the first pass).
 const BAND: usize = 4;
-
-/// A pixel whose own samples agree is refined anyway when at least this many of its
-/// eight neighbours are busy: where edges are dense, features fit between the samples.
-pub const BUSY_NEIGHBOURS: u32 = 2;
 
 /// Seeds of the first pass's positions ([`Pattern::Jittered`]).
 const CORNER_SEED: u64 = 0xC0C0_0A7E_5EED_0001;
@@ -142,24 +141,43 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             (0..rw * rh).map(is_busy).collect()
         }
     });
-    let refine = |x: usize, y: usize| {
-        if busy[y * rw + x] {
-            return true;
-        }
-        let near = |d: usize, v: usize, len: usize| v + d >= 1 && v + d <= len;
-        let mut count = 0;
-        for dy in 0..3 {
-            for dx in 0..3 {
-                if (dx, dy) != (1, 1) && near(dx, x, rw) && near(dy, y, rh) {
-                    count += u32::from(busy[(y + dy - 1) * rw + x + dx - 1]);
-                }
-            }
-        }
-        count >= BUSY_NEIGHBOURS
-    };
-    // the pixels
+    // the busy pixels' grids, and which of their neighbours they make refine
     let fine = Samples::new(camera, fw, fh, n);
     let nn = (n * n) as usize;
+    let mean5 = |x: usize, y: usize| {
+        let sum = five(x, y).into_iter().fold(Default::default(), T::Colors::add);
+        T::Colors::linear(sum, 5)
+    };
+    let flagged: Vec<AtomicBool> = (0..rw * rh).map(|_| AtomicBool::new(false)).collect();
+    let busy_band = |k: usize| {
+        let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
+        let mut grid = vec![Sum::<T>::default(); nn];
+        let mut sums = Vec::new();
+        for y in k * BAND..((k + 1) * BAND).min(rh) {
+            for x in (0..rw).filter(|&x| busy[y * rw + x]) {
+                let (sx, sy) = (ring.x0 as usize + x, ring.y0 as usize + y);
+                let (sx, sy) = ((sx * n as usize) as u32, (sy * n as usize) as u32);
+                trace_samples(tracer, &fine, sx, sy, n as usize, &mut grid, &mut scratch, &mut stats);
+                sums.push((y * rw + x, grid.iter().fold(Default::default(), |a, &s| T::Colors::add(a, s))));
+                flag_neighbours::<T>(&grid, n as usize, (x, y), (rw, rh), threshold, &busy, &flagged, mean5);
+            }
+        }
+        add(&stats);
+        sums
+    };
+    let bands = rh.div_ceil(BAND);
+    let refined: Vec<Vec<(usize, Sum<T>)>> = with_threads(run.threads, || {
+        if parallel() {
+            (0..bands).into_par_iter().map(busy_band).collect()
+        } else {
+            (0..bands).map(busy_band).collect()
+        }
+    });
+    let mut grid_sums = vec![None; rw * rh];
+    for (i, sum) in refined.into_iter().flatten() {
+        grid_sums[i] = Some(sum);
+    }
+    // the pixels
     let bar = progress_bar(run.progress, rect.height());
     let one = |(k, pixels): (usize, &mut [P])| {
         let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
@@ -170,30 +188,18 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
                 rect.y0 as usize + k * BAND + i / width,
             );
             let (rx, ry) = (x - ring.x0 as usize, y - ring.y0 as usize);
-            let mut sum = Default::default();
-            if refine(rx, ry) {
+            let r = ry * rw + rx;
+            *px = if let Some(sum) = grid_sums[r] {
+                P::resolve::<T::Colors>(sum, nn as u32)
+            } else if flagged[r].load(Ordering::Relaxed) {
                 let (sx, sy) = ((x * n as usize) as u32, (y * n as usize) as u32);
-                let t = tracer;
-                trace_samples(
-                    t,
-                    &fine,
-                    sx,
-                    sy,
-                    n as usize,
-                    &mut inside,
-                    &mut scratch,
-                    &mut stats,
-                );
-                for &s in &inside {
-                    sum = T::Colors::add(sum, s);
-                }
-                *px = P::resolve::<T::Colors>(sum, nn as u32);
+                trace_samples(tracer, &fine, sx, sy, n as usize, &mut inside, &mut scratch, &mut stats);
+                let sum = inside.iter().fold(Default::default(), |a, &s| T::Colors::add(a, s));
+                P::resolve::<T::Colors>(sum, nn as u32)
             } else {
-                for s in five(rx, ry) {
-                    sum = T::Colors::add(sum, s);
-                }
-                *px = P::resolve::<T::Colors>(sum, 5);
-            }
+                let sum = five(rx, ry).into_iter().fold(Default::default(), T::Colors::add);
+                P::resolve::<T::Colors>(sum, 5)
+            };
         }
         add(&stats);
         bar.inc((pixels.len() / width) as u64);
@@ -207,6 +213,46 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
     });
     bar.finish_and_clear();
     total.into_inner().expect("no panics while holding")
+}
+
+/// Flags the neighbours of the busy pixel (x, y) of a `w × h` ring that are not busy
+/// themselves and whose mean (`mean`) one of the pixel's samples next to them, in its
+/// `n × n` `grid`, differs from by more than `threshold`: an edge that leaves the pixel
+/// toward that neighbour.
+#[allow(clippy::too_many_arguments)]
+fn flag_neighbours<T: SampleTracer>(
+    grid: &[Sum<T>],
+    n: usize,
+    (x, y): (usize, usize),
+    (w, h): (usize, usize),
+    threshold: f32,
+    busy: &[bool],
+    flagged: &[AtomicBool],
+    mean: impl Fn(usize, usize) -> DVec3,
+) {
+    // the rows or columns of the grid that face a neighbour at offset -1, 0 or +1
+    let facing = |d: usize| match d {
+        0 => 0..1,
+        1 => 0..n,
+        _ => n - 1..n,
+    };
+    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = qy * w + qx;
+            if busy[q] || flagged[q].load(Ordering::Relaxed) {
+                continue;
+            }
+            let m = mean(qx, qy);
+            let (cols, rows) = (facing(qx + 1 - x), facing(qy + 1 - y));
+            let differs = rows.flat_map(|j| cols.clone().map(move |i| j * n + i)).any(|s| {
+                let c = T::Colors::linear(grid[s], 1);
+                (c - m).abs().max_element() > threshold as f64
+            });
+            if differs {
+                flagged[q].store(true, Ordering::Relaxed);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
