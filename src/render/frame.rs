@@ -223,11 +223,12 @@ pub enum Sampler {
     /// `n × n` samples per pixel at the centres of its cells; `n` = 1: the pixel centre,
     /// the spec's image.
     Uniform { n: u32 },
-    /// Two jittered samples per pixel first (its corners, shared with its neighbours,
-    /// and its centre); a pixel whose five samples differ by more than `threshold` in
-    /// some channel (linear, [0, 1]) is *busy*. A busy pixel, or one with at least
-    /// [`adaptive::BUSY_NEIGHBOURS`] busy neighbours, is then sampled as `Uniform { n }`
-    /// samples it; any other pixel is the mean of its five samples.
+    /// One jittered sample per pixel first (its corners, shared with its neighbours); a
+    /// pixel whose corners differ by more than `threshold` in some channel (linear,
+    /// [0, 1]) is *busy* and sampled as `Uniform { n }` samples it, and so, in up to
+    /// [`adaptive::WAVES`] waves, is each neighbour of a refined pixel whose corners
+    /// differ by more than `threshold` from the refined pixel's samples next to it; any
+    /// other pixel is the mean of its four corners.
     Adaptive { n: u32, threshold: f32 },
 }
 

@@ -1,22 +1,25 @@
-//! The adaptive sampler ([`super::Sampler::Adaptive`]): a first pass of two samples per
-//! pixel, then the uniform `n × n` grid inside the pixels that need it.
+//! The adaptive sampler ([`super::Sampler::Adaptive`]): one sample per pixel first, then
+//! the uniform `n × n` grid inside the pixels that need it, found in waves.
 //!
-//! The first pass traces the pixels' corners (each shared by the four pixels that meet
-//! there) and their centres, each jittered inside its cell: a regular lattice aliases
-//! with a regular picture (the checkerboard toward the horizon, its reflections), where
-//! whole rows of samples then agree. A pixel is *busy* when its four corners and its
-//! centre differ by more than the threshold in some channel. A busy pixel, or one with
-//! at least [`BUSY_NEIGHBOURS`] busy neighbours (where edges are dense, features fit
-//! between the samples), is sampled exactly as [`super::Sampler::Uniform`] samples it;
-//! any other pixel is the mean of its five samples. Both choices read only the first
-//! pass of the pixel and its neighbours, traced here the same way for any rectangle, so
-//! a crop equals the same pixels of the whole frame.
+//! The first pass traces the pixels' corners, each shared by the four pixels that meet
+//! there and jittered inside its cell: a regular lattice aliases with a regular picture
+//! (the checkerboard toward the horizon, its reflections), where whole rows of samples
+//! then agree. A pixel is *busy* when its four corners differ by more than the threshold
+//! in some channel. The first wave samples the busy pixels as [`super::Sampler::Uniform`]
+//! samples them; each later wave samples the pixels next to the last wave's whose own
+//! corners agree but differ by more than the threshold from one of the last wave's
+//! samples facing them: an edge or a thin feature that leaves a refined pixel toward its
+//! neighbour, followed until it fades or [`WAVES`] waves are done. Any other pixel is the
+//! mean of its corners.
+//!
+//! A pixel's result reads only the first pass of the pixels up to `WAVES - 1` away (the
+//! waves that can reach it), traced here the same way for any rectangle, so a crop
+//! equals the same pixels of the whole frame.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::DVec3;
-
 use rayon::prelude::*;
 
 use super::{
@@ -27,12 +30,18 @@ use crate::parallel::{parallel, with_threads};
 use crate::scene::Camera;
 use crate::scene::camera::PixelGrid;
 
-/// Pixel rows per parallel task (and sample rows of the first pass).
+/// Pixel rows per parallel task of the first pass and of the output.
 const BAND: usize = 4;
 
-/// Seeds of the first pass's positions ([`Pattern::Jittered`]).
+/// Waves of refinement: the busy pixels, then up to `WAVES - 1` steps along what they
+/// found. A pixel's result depends on the pixels up to `WAVES - 1` away.
+pub const WAVES: u32 = 4;
+
+/// Refined pixels per parallel task of a wave.
+const WAVE_CHUNK: usize = 16;
+
+/// Seed of the corners' positions ([`Pattern::Jittered`]).
 const CORNER_SEED: u64 = 0xC0C0_0A7E_5EED_0001;
-const CENTRE_SEED: u64 = 0xC0C0_0A7E_5EED_0002;
 
 /// The corners of a `width × height` frame's pixels as a sample grid: sample (x, y) is
 /// the top-left corner of pixel (x, y).
@@ -87,12 +96,13 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
         return RenderStats::default();
     }
     let (fw, fh) = (frame.width(), frame.height());
-    // the rectangle and its neighbours inside the frame: their corners and centres
+    // the rectangle and the pixels whose waves can reach it
+    let reach = WAVES - 1;
     let ring = PixelRect {
-        x0: rect.x0.saturating_sub(1),
-        x1: (rect.x1 + 1).min(frame.x1),
-        y0: rect.y0.saturating_sub(1),
-        y1: (rect.y1 + 1).min(frame.y1),
+        x0: rect.x0.saturating_sub(reach),
+        x1: (rect.x1 + reach).min(frame.x1),
+        y0: rect.y0.saturating_sub(reach),
+        y1: (rect.y1 + reach).min(frame.y1),
     };
     let (rw, rh) = (ring.width() as usize, ring.height() as usize);
     let cw = rw + 1;
@@ -101,107 +111,143 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
         n: 1,
         pattern: Pattern::Jittered { seed: CORNER_SEED },
     };
-    let centre_samples = Samples {
-        pattern: Pattern::Jittered { seed: CENTRE_SEED },
-        ..Samples::new(camera, fw, fh, 1)
-    };
     let total = Mutex::new(RenderStats::default());
     let add = |s: &RenderStats| total.lock().expect("no panics while holding").add(s);
-    let at = (ring.x0, ring.y0);
-    let corners = || first_pass(tracer, &corner_samples, at, (cw, rh + 1), &add);
-    let centres = || first_pass(tracer, &centre_samples, at, (rw, rh), &add);
-    let (corners, centres) = with_threads(run.threads, || {
-        if parallel() {
-            rayon::join(corners, centres)
-        } else {
-            (corners(), centres())
-        }
+    let corners = with_threads(run.threads, || {
+        first_pass(
+            tracer,
+            &corner_samples,
+            (ring.x0, ring.y0),
+            (cw, rh + 1),
+            &add,
+        )
     });
-    // which pixels of the ring are busy
-    let linear = |s: Sum<T>| T::Colors::linear(s, 1);
-    let five = |x: usize, y: usize| {
+    let four = |i: usize| {
+        let (x, y) = (i % rw, i / rw);
+        let c = y * cw + x;
         [
-            corners[y * cw + x],
-            corners[y * cw + x + 1],
-            corners[(y + 1) * cw + x],
-            corners[(y + 1) * cw + x + 1],
-            centres[y * rw + x],
+            corners[c],
+            corners[c + 1],
+            corners[c + cw],
+            corners[c + cw + 1],
         ]
     };
+    let mean = |i: usize| {
+        T::Colors::linear(
+            four(i).into_iter().fold(Default::default(), T::Colors::add),
+            4,
+        )
+    };
     let is_busy = |i: usize| {
-        let c = five(i % rw, i / rw).map(linear);
-        let hi = c.iter().fold(c[0], |a, b| a.max(*b));
-        let lo = c.iter().fold(c[0], |a, b| a.min(*b));
+        let c = four(i).map(|s| T::Colors::linear(s, 1));
+        let hi = c[1..].iter().fold(c[0], |a, b| a.max(*b));
+        let lo = c[1..].iter().fold(c[0], |a, b| a.min(*b));
         (hi - lo).max_element() > threshold as f64
     };
-    let busy: Vec<bool> = with_threads(run.threads, || {
+    let busy: Vec<usize> = with_threads(run.threads, || {
         if parallel() {
-            (0..rw * rh).into_par_iter().map(is_busy).collect()
+            (0..rw * rh)
+                .into_par_iter()
+                .filter(|&i| is_busy(i))
+                .collect()
         } else {
-            (0..rw * rh).map(is_busy).collect()
+            (0..rw * rh).filter(|&i| is_busy(i)).collect()
         }
     });
-    // the busy pixels' grids, and which of their neighbours they make refine
+    // the waves: each pixel of a wave sampled n × n, its sum kept
     let fine = Samples::new(camera, fw, fh, n);
     let nn = (n * n) as usize;
-    let mean5 = |x: usize, y: usize| {
-        let sum = five(x, y).into_iter().fold(Default::default(), T::Colors::add);
-        T::Colors::linear(sum, 5)
+    let taken: Vec<AtomicBool> = (0..rw * rh).map(|_| AtomicBool::new(false)).collect();
+    for &i in &busy {
+        taken[i].store(true, Ordering::Relaxed);
+    }
+    let mut refined: Vec<Option<Sum<T>>> = vec![None; rw * rh];
+    // pixels from the ring pixel i to the rectangle (0 inside)
+    let ring_distance = |i: usize| {
+        let (x, y) = (
+            (ring.x0 as usize + i % rw) as i64,
+            (ring.y0 as usize + i / rw) as i64,
+        );
+        let out_x = (rect.x0 as i64 - x).max(x + 1 - rect.x1 as i64).max(0);
+        let out_y = (rect.y0 as i64 - y).max(y + 1 - rect.y1 as i64).max(0);
+        out_x.max(out_y) as usize
     };
-    let flagged: Vec<AtomicBool> = (0..rw * rh).map(|_| AtomicBool::new(false)).collect();
-    let busy_band = |k: usize| {
-        let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
-        let mut grid = vec![Sum::<T>::default(); nn];
-        let mut sums = Vec::new();
-        for y in k * BAND..((k + 1) * BAND).min(rh) {
-            for x in (0..rw).filter(|&x| busy[y * rw + x]) {
+    let mut wave = busy;
+    for k in 0..WAVES as usize {
+        // a pixel of the next wave matters only if it can still reach the rectangle
+        let reaches = |q: usize| ring_distance(q) + k + 2 <= WAVES as usize;
+        let chunk = |ids: &[usize]| {
+            let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
+            let mut grid = vec![Sum::<T>::default(); nn];
+            let (mut sums, mut next) = (Vec::with_capacity(ids.len()), Vec::new());
+            for &i in ids {
+                let (x, y) = (i % rw, i / rw);
                 let (sx, sy) = (ring.x0 as usize + x, ring.y0 as usize + y);
                 let (sx, sy) = ((sx * n as usize) as u32, (sy * n as usize) as u32);
-                trace_samples(tracer, &fine, sx, sy, n as usize, &mut grid, &mut scratch, &mut stats);
-                sums.push((y * rw + x, grid.iter().fold(Default::default(), |a, &s| T::Colors::add(a, s))));
-                flag_neighbours::<T>(&grid, n as usize, (x, y), (rw, rh), threshold, &busy, &flagged, mean5);
+                trace_samples(
+                    tracer,
+                    &fine,
+                    sx,
+                    sy,
+                    n as usize,
+                    &mut grid,
+                    &mut scratch,
+                    &mut stats,
+                );
+                sums.push((
+                    i,
+                    grid.iter()
+                        .fold(Default::default(), |a, &s| T::Colors::add(a, s)),
+                ));
+                if k + 1 < WAVES as usize {
+                    let facing = Facing {
+                        grid: &grid,
+                        n: n as usize,
+                        at: (x, y),
+                        ring: (rw, rh),
+                    };
+                    facing.differing::<T::Colors>(threshold, &taken, &mean, &reaches, &mut next);
+                }
             }
+            add(&stats);
+            (sums, next)
+        };
+        let done: Vec<(Vec<(usize, Sum<T>)>, Vec<usize>)> = with_threads(run.threads, || {
+            if parallel() {
+                wave.par_chunks(WAVE_CHUNK).map(chunk).collect()
+            } else {
+                wave.chunks(WAVE_CHUNK).map(chunk).collect()
+            }
+        });
+        wave = Vec::new();
+        for (sums, next) in done {
+            for (i, sum) in sums {
+                refined[i] = Some(sum);
+            }
+            wave.extend(next);
         }
-        add(&stats);
-        sums
-    };
-    let bands = rh.div_ceil(BAND);
-    let refined: Vec<Vec<(usize, Sum<T>)>> = with_threads(run.threads, || {
-        if parallel() {
-            (0..bands).into_par_iter().map(busy_band).collect()
-        } else {
-            (0..bands).map(busy_band).collect()
+        if wave.is_empty() {
+            break;
         }
-    });
-    let mut grid_sums = vec![None; rw * rh];
-    for (i, sum) in refined.into_iter().flatten() {
-        grid_sums[i] = Some(sum);
+        wave.sort_unstable();
     }
     // the pixels
     let bar = progress_bar(run.progress, rect.height());
     let one = |(k, pixels): (usize, &mut [P])| {
-        let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
-        let mut inside = vec![Sum::<T>::default(); nn];
         for (i, px) in pixels.iter_mut().enumerate() {
             let (x, y) = (
                 rect.x0 as usize + i % width,
                 rect.y0 as usize + k * BAND + i / width,
             );
-            let (rx, ry) = (x - ring.x0 as usize, y - ring.y0 as usize);
-            let r = ry * rw + rx;
-            *px = if let Some(sum) = grid_sums[r] {
-                P::resolve::<T::Colors>(sum, nn as u32)
-            } else if flagged[r].load(Ordering::Relaxed) {
-                let (sx, sy) = ((x * n as usize) as u32, (y * n as usize) as u32);
-                trace_samples(tracer, &fine, sx, sy, n as usize, &mut inside, &mut scratch, &mut stats);
-                let sum = inside.iter().fold(Default::default(), |a, &s| T::Colors::add(a, s));
-                P::resolve::<T::Colors>(sum, nn as u32)
-            } else {
-                let sum = five(rx, ry).into_iter().fold(Default::default(), T::Colors::add);
-                P::resolve::<T::Colors>(sum, 5)
+            let r = (y - ring.y0 as usize) * rw + x - ring.x0 as usize;
+            *px = match refined[r] {
+                Some(sum) => P::resolve::<T::Colors>(sum, nn as u32),
+                None => P::resolve::<T::Colors>(
+                    four(r).into_iter().fold(Default::default(), T::Colors::add),
+                    4,
+                ),
             };
         }
-        add(&stats);
         bar.inc((pixels.len() / width) as u64);
     };
     with_threads(run.threads, || {
@@ -215,41 +261,50 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
     total.into_inner().expect("no panics while holding")
 }
 
-/// Flags the neighbours of the busy pixel (x, y) of a `w × h` ring that are not busy
-/// themselves and whose mean (`mean`) one of the pixel's samples next to them, in its
-/// `n × n` `grid`, differs from by more than `threshold`: an edge that leaves the pixel
-/// toward that neighbour.
-#[allow(clippy::too_many_arguments)]
-fn flag_neighbours<T: SampleTracer>(
-    grid: &[Sum<T>],
+/// The `n × n` samples of a refined pixel at `at` of a `ring`-sized rectangle.
+struct Facing<'a, S> {
+    grid: &'a [S],
     n: usize,
-    (x, y): (usize, usize),
-    (w, h): (usize, usize),
-    threshold: f32,
-    busy: &[bool],
-    flagged: &[AtomicBool],
-    mean: impl Fn(usize, usize) -> DVec3,
-) {
-    // the rows or columns of the grid that face a neighbour at offset -1, 0 or +1
-    let facing = |d: usize| match d {
-        0 => 0..1,
-        1 => 0..n,
-        _ => n - 1..n,
-    };
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if busy[q] || flagged[q].load(Ordering::Relaxed) {
-                continue;
-            }
-            let m = mean(qx, qy);
-            let (cols, rows) = (facing(qx + 1 - x), facing(qy + 1 - y));
-            let differs = rows.flat_map(|j| cols.clone().map(move |i| j * n + i)).any(|s| {
-                let c = T::Colors::linear(grid[s], 1);
-                (c - m).abs().max_element() > threshold as f64
-            });
-            if differs {
-                flagged[q].store(true, Ordering::Relaxed);
+    at: (usize, usize),
+    ring: (usize, usize),
+}
+
+impl<S: Copy> Facing<'_, S> {
+    /// Adds to `next`, and marks taken, each neighbour not yet taken (and that `reaches`
+    /// the rendered rectangle in the waves left) that one of the
+    /// samples facing it (the grid's row, column or corner next to it) differs from by
+    /// more than `threshold` in some channel, the neighbour given by its `mean`.
+    fn differing<C: SampleColors<Sum = S>>(
+        &self,
+        threshold: f32,
+        taken: &[AtomicBool],
+        mean: &impl Fn(usize) -> DVec3,
+        reaches: &impl Fn(usize) -> bool,
+        next: &mut Vec<usize>,
+    ) {
+        let ((x, y), (w, h), n) = (self.at, self.ring, self.n);
+        // the grid's rows or columns that face a neighbour at offset -1, 0 or +1
+        let facing = |d: usize| match d {
+            0 => 0..1,
+            1 => 0..n,
+            _ => n - 1..n,
+        };
+        for qy in y.saturating_sub(1)..(y + 2).min(h) {
+            for qx in x.saturating_sub(1)..(x + 2).min(w) {
+                let q = qy * w + qx;
+                if !reaches(q) || taken[q].load(Ordering::Relaxed) {
+                    continue;
+                }
+                let m = mean(q);
+                let (cols, rows) = (facing(qx + 1 - x), facing(qy + 1 - y));
+                let differs = rows
+                    .flat_map(|j| cols.clone().map(move |i| j * n + i))
+                    .any(|s| {
+                        (C::linear(self.grid[s], 1) - m).abs().max_element() > threshold as f64
+                    });
+                if differs && !taken[q].swap(true, Ordering::Relaxed) {
+                    next.push(q);
+                }
             }
         }
     }
@@ -336,8 +391,8 @@ mod tests {
         let pic = Picture::new(w, h, |_, _| 0.25);
         let (out, stats) = render(&pic, (w, h), PixelRect::full(w, h), ADAPTIVE);
         assert!(out.iter().all(|p| *p == DVec3::splat(0.25)));
-        // the corners and the centres
-        assert_eq!(stats.primary_rays, ((w + 1) * (h + 1) + w * h) as u64);
+        // the corners
+        assert_eq!(stats.primary_rays, ((w + 1) * (h + 1)) as u64);
     }
 
     #[test]
@@ -359,7 +414,7 @@ mod tests {
             }
         }
         // the first pass, and at most three columns of 16 samples
-        let first = ((w + 1) * (h + 1) + w * h) as u64;
+        let first = ((w + 1) * (h + 1)) as u64;
         assert!(stats.primary_rays > first);
         assert!(stats.primary_rays <= first + 3 * h as u64 * 16, "{stats:?}");
     }
@@ -386,6 +441,58 @@ mod tests {
             }
         }
         assert_eq!(out[2 * w as usize].x, 0.0);
+    }
+
+    #[test]
+    fn a_line_is_followed_from_its_busy_pixels_for_waves_minus_one_pixels() {
+        // a horizontal line half a pixel wide through pixel row 10 (v in [10.25, 10.75)):
+        // each corner of the row falls on it with chance 1/4, so busy pixels (some but
+        // not all corners on it) are scattered along it. The grid's rows at v = 10.375
+        // and 10.625 are on it: a refined pixel of the row is 0.5.
+        let (w, h) = (64, 21);
+        let on_line = |v: f64| (10.25..10.75).contains(&v);
+        let pic = Picture::new(w, h, |_, v| if on_line(v) { 1.0 } else { 0.0 });
+        let (out, stats) = render(&pic, (w, h), PixelRect::full(w, h), ADAPTIVE);
+        let corner = Samples {
+            grid: corner_grid(&Camera::default(), w, h),
+            n: 1,
+            pattern: Pattern::Jittered { seed: CORNER_SEED },
+        };
+        let on = |x: u32, y: u32| on_line(y as f64 + corner.offset(x, y)[1]) as u32;
+        let busy: Vec<i64> = (0..w)
+            .filter(|&x| (1..4).contains(&(on(x, 10) + on(x + 1, 10) + on(x, 11) + on(x + 1, 11))))
+            .map(i64::from)
+            .collect();
+        let reach = i64::from(WAVES - 1);
+        let mut followed = 0;
+        for x in 0..i64::from(w) {
+            let v = out[10 * w as usize + x as usize].x;
+            let near = busy
+                .iter()
+                .map(|b| (b - x).abs())
+                .min()
+                .expect("busy pixels");
+            if near <= reach {
+                assert_eq!(v, 0.5, "pixel {x}, {near} from a busy pixel");
+                followed += u32::from(near > 0);
+            } else {
+                assert_eq!(
+                    v, 0.0,
+                    "pixel {x}, {near} from a busy pixel: beyond the waves"
+                );
+            }
+        }
+        assert!(followed > 0, "the waves refined pixels that were not busy");
+        // nothing away from the line is refined
+        for y in (0..h as usize).filter(|y| !(9..=11).contains(y)) {
+            assert!(
+                out[y * w as usize..][..w as usize]
+                    .iter()
+                    .all(|p| p.x == 0.0)
+            );
+        }
+        let first = ((w + 1) * (h + 1)) as u64;
+        assert!(stats.primary_rays <= first + 3 * w as u64 * 16, "{stats:?}");
     }
 
     #[test]
