@@ -334,7 +334,7 @@ pub fn render_rect<T: SampleTracer, P: PixelOut>(
     }
     let band = band_rows(samples.n);
     let total = Mutex::new(RenderStats::default());
-    let bar = progress_bar(run.progress, rect.height());
+    let bar = progress_bar(run.progress, rect.height() as u64, "rows");
     let one = |(k, pixels): (usize, &mut [P])| {
         let y0 = rect.y0 + k as u32 * band;
         let stats = render_band(tracer, samples, rect.x0, y0, width, pixels);
@@ -437,15 +437,18 @@ fn trace_samples<T: SampleTracer>(
     stats.primary_rays += out.len() as u64;
 }
 
-fn progress_bar(show: bool, rows: u32) -> ProgressBar {
+/// A progress bar on stderr when `show` and stderr is a terminal, of `len` `unit`s.
+fn progress_bar(show: bool, len: u64, unit: &str) -> ProgressBar {
     if !(show && std::io::stderr().is_terminal()) {
         return ProgressBar::hidden();
     }
-    let bar = ProgressBar::new(rows as u64);
+    let bar = ProgressBar::new(len);
     bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} rows, eta {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(&format!(
+            "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit}, eta {{eta}}"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     bar
 }

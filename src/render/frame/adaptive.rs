@@ -55,6 +55,12 @@ pub fn corner_grid(camera: &Camera, width: u32, height: u32) -> PixelGrid {
 
 type Sum<T> = <<T as SampleTracer>::Colors as SampleColors>::Sum;
 
+/// What a task of a wave found: the refined pixels' sums, and the next wave's pixels.
+struct WaveOut<S> {
+    sums: Vec<(usize, S)>,
+    next: Vec<usize>,
+}
+
 /// Traces `w × h` samples of `samples` from (x0, y0), in parallel bands of rows.
 fn first_pass<T: SampleTracer>(
     tracer: &T,
@@ -173,7 +179,10 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
         out_x.max(out_y) as usize
     };
     let mut wave = busy;
+    // progress: the pixels refined so far of those known to refine
+    let bar = progress_bar(run.progress, 0, "pixels refined");
     for k in 0..WAVES as usize {
+        bar.inc_length(wave.len() as u64);
         // a pixel of the next wave matters only if it can still reach the rectangle
         let reaches = |q: usize| ring_distance(q) + k + 2 <= WAVES as usize;
         let chunk = |ids: &[usize]| {
@@ -210,9 +219,10 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
                 }
             }
             add(&stats);
-            (sums, next)
+            bar.inc(ids.len() as u64);
+            WaveOut { sums, next }
         };
-        let done: Vec<(Vec<(usize, Sum<T>)>, Vec<usize>)> = with_threads(run.threads, || {
+        let done: Vec<WaveOut<Sum<T>>> = with_threads(run.threads, || {
             if parallel() {
                 wave.par_chunks(WAVE_CHUNK).map(chunk).collect()
             } else {
@@ -220,19 +230,19 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             }
         });
         wave = Vec::new();
-        for (sums, next) in done {
-            for (i, sum) in sums {
+        for out in done {
+            for (i, sum) in out.sums {
                 refined[i] = Some(sum);
             }
-            wave.extend(next);
+            wave.extend(out.next);
         }
         if wave.is_empty() {
             break;
         }
         wave.sort_unstable();
     }
+    bar.finish_and_clear();
     // the pixels
-    let bar = progress_bar(run.progress, rect.height());
     let one = |(k, pixels): (usize, &mut [P])| {
         for (i, px) in pixels.iter_mut().enumerate() {
             let (x, y) = (
@@ -248,7 +258,6 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
                 ),
             };
         }
-        bar.inc((pixels.len() / width) as u64);
     };
     with_threads(run.threads, || {
         if parallel() {
@@ -257,7 +266,6 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             out.chunks_mut(width * BAND).enumerate().for_each(one);
         }
     });
-    bar.finish_and_clear();
     total.into_inner().expect("no panics while holding")
 }
 
