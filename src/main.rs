@@ -214,8 +214,8 @@ struct RenderArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
     /// Render only tile I of N (I from 0): every N-th of N x m stripes of rows (up to 16
-    /// per tile), so that tiles take about the same time. A PNG tile records where it
-    /// belongs, for `octaray assemble`.
+    /// per tile; 48 rows high at least under an adaptive profile), so that tiles take
+    /// about the same time. A PNG tile records where it belongs, for `octaray assemble`.
     #[arg(long, value_name = "I/N", value_parser = octaray::farm::parse_tile, conflicts_with = "crop")]
     tile: Option<(u32, u32)>,
     /// Render only the pixels [X0,X1) x [Y0,Y1) of the frame (recorded in a PNG, as --tile).
@@ -470,8 +470,8 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
-    let rects = piece(args, size)?;
     let profile = load_profile("--profile", &args.profile)?;
+    let rects = piece(args, size, profile.sampler().min_stripe_rows())?;
     warn_caustic_pairs(&scene, &profile);
     if rects.is_some() && !args.output.as_deref().is_some_and(is_png) {
         say!(
@@ -516,11 +516,16 @@ fn threads_used(threads: Option<u32>) -> String {
     )
 }
 
-/// The rectangles of `--tile` or `--crop` in a frame of `size` (`None`: the whole frame).
-fn piece(args: &RenderArgs, size: viewer::Size) -> Result<Option<Vec<PixelRect>>, Failure> {
+/// The rectangles of `--tile` (stripes `min_rows` high at least) or `--crop` in a frame
+/// of `size` (`None`: the whole frame).
+fn piece(
+    args: &RenderArgs,
+    size: viewer::Size,
+    min_rows: u32,
+) -> Result<Option<Vec<PixelRect>>, Failure> {
     let (w, h) = (size.width, size.height);
     if let Some((i, n)) = args.tile {
-        return octaray::farm::tile_rects(i, n, w, h)
+        return octaray::farm::tile_rects(i, n, (w, h), min_rows)
             .map(Some)
             .map_err(|e| Failure::input(format!("--tile {i}/{n}: {e}")));
     }

@@ -46,7 +46,9 @@ pub fn parse_tile(s: &str) -> Result<(u32, u32), String> {
 pub const STRIPES: u32 = 16;
 
 /// The stripes of tile `index` of `count` of a `width × height` frame, top to bottom
-/// (adjacent stripes merged: one tile of one is the whole frame).
+/// (adjacent stripes merged: one tile of one is the whole frame), each `min_rows` high
+/// at least where the frame allows (a sampler that reads a margin around every stripe
+/// wants them tall: [`crate::render::frame::Sampler::min_stripe_rows`]).
 ///
 /// The frame is cut into m periods of N stripes; in each period every tile has one
 /// stripe, in tile order in even periods and reversed in odd ones (so that a tile's
@@ -55,15 +57,15 @@ pub const STRIPES: u32 = 16;
 pub fn tile_rects(
     index: u32,
     count: u32,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    min_rows: u32,
 ) -> Result<Vec<PixelRect>, String> {
     if count > height {
         return Err(format!(
             "{count} tiles of a frame {height} rows high: a tile takes whole rows, one at least"
         ));
     }
-    let periods = (height / (2 * count)).clamp(1, STRIPES) as u64;
+    let periods = (height / (min_rows.max(2) * count)).clamp(1, STRIPES) as u64;
     let (n, i) = (count as u64, index as u64);
     // rows counted in pairs where every stripe can have one pair at least (the last
     // stripe of the frame takes an odd row)
@@ -338,8 +340,9 @@ mod tests {
             (9, 7, 3),
             (9, 1000, 1),
         ] {
-            let tiles: Vec<Vec<PixelRect>> =
-                (0..n).map(|i| tile_rects(i, n, w, h).unwrap()).collect();
+            let tiles: Vec<Vec<PixelRect>> = (0..n)
+                .map(|i| tile_rects(i, n, (w, h), 2).unwrap())
+                .collect();
             // every row in exactly one tile
             let mut owner = vec![None; h as usize];
             for (i, rects) in tiles.iter().enumerate() {
@@ -376,18 +379,27 @@ mod tests {
             }
         }
         // 4K in 16: 16 stripes each, sampling the whole height
-        let t = tile_rects(5, 16, 3840, 2160).unwrap();
+        let t = tile_rects(5, 16, (3840, 2160), 2).unwrap();
         assert_eq!(t.len(), 16);
         assert!(t[0].y0 < 200 && t[15].y1 > 1900);
         // a tile's place in the periods alternates: 5 above 10, then below
-        let u = tile_rects(10, 16, 3840, 2160).unwrap();
+        let u = tile_rects(10, 16, (3840, 2160), 2).unwrap();
         assert!(t[0].y0 < u[0].y0 && t[1].y0 > u[1].y0);
         assert!(t[0].y0 > 0 && u[1].y1 < 2 * 2160 / 16);
         assert_eq!(
-            tile_rects(0, 1, 9, 1000).unwrap(),
+            tile_rects(0, 1, (9, 1000), 2).unwrap(),
             [PixelRect::full(9, 1000)]
         );
-        assert!(tile_rects(0, 8, 10, 7).is_err());
+        assert!(tile_rects(0, 8, (10, 7), 2).is_err());
+        // taller stripes when asked: 1080 rows in 4 tiles, 5 periods of 48-row stripes
+        // or more (the end tiles' stripes meet at the turns and merge)
+        for i in 0..4 {
+            let t = tile_rects(i, 4, (1920, 1080), 48).unwrap();
+            assert_eq!(t.len(), if i == 1 || i == 2 { 5 } else { 3 }, "{t:?}");
+            assert!(t.iter().all(|r| r.height() >= 48), "{t:?}");
+        }
+        // and never fewer than one stripe a tile
+        assert_eq!(tile_rects(3, 16, (1920, 1080), 48).unwrap().len(), 1);
     }
 
     #[test]

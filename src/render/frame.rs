@@ -30,7 +30,7 @@ use crate::scene::camera::PixelGrid;
 
 mod adaptive;
 
-pub use adaptive::corner_grid;
+pub use adaptive::{WAVES, corner_grid};
 
 /// A half-open rectangle of pixels, [x0, x1) × [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -233,6 +233,17 @@ pub enum Sampler {
 }
 
 impl Sampler {
+    /// The shortest stripe of rows worth rendering on its own (a tile's stripes): the
+    /// adaptive sampler also traces the first pass, and follows edges, in the
+    /// `WAVES - 1` rows above and below a stripe; at 16 × that, those rows add at most
+    /// an eighth to the stripe's first pass. Uniform sampling reads nothing outside.
+    pub fn min_stripe_rows(&self) -> u32 {
+        match self {
+            Sampler::Uniform { .. } => 2,
+            Sampler::Adaptive { .. } => 16 * (WAVES - 1),
+        }
+    }
+
     /// The side of the sample grid inside a pixel (the uniform grid, or the adaptive
     /// sampler's refinement).
     pub fn n(&self) -> u32 {
