@@ -128,8 +128,7 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             &add,
         )
     });
-    let four = |i: usize| {
-        let (x, y) = (i % rw, i / rw);
+    let four = |x: usize, y: usize| {
         let c = y * cw + x;
         [
             corners[c],
@@ -138,26 +137,37 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             corners[c + cw + 1],
         ]
     };
-    let mean = |i: usize| {
+    let mean = |x: usize, y: usize| {
         T::Colors::linear(
-            four(i).into_iter().fold(Default::default(), T::Colors::add),
+            four(x, y)
+                .into_iter()
+                .fold(Default::default(), T::Colors::add),
             4,
         )
     };
-    let is_busy = |i: usize| {
-        let c = four(i).map(|s| T::Colors::linear(s, 1));
-        let hi = c[1..].iter().fold(c[0], |a, b| a.max(*b));
-        let lo = c[1..].iter().fold(c[0], |a, b| a.min(*b));
-        (hi - lo).max_element() > threshold as f64
+    // the busy pixels of ring row y, as ring indices
+    let busy_in_row = |y: usize| {
+        let linear = |row: usize| -> Vec<DVec3> {
+            corners[row * cw..][..cw]
+                .iter()
+                .map(|&s| T::Colors::linear(s, 1))
+                .collect()
+        };
+        let (above, below) = (linear(y), linear(y + 1));
+        (0..rw)
+            .filter(|&x| {
+                let hi = above[x].max(above[x + 1]).max(below[x].max(below[x + 1]));
+                let lo = above[x].min(above[x + 1]).min(below[x].min(below[x + 1]));
+                (hi - lo).max_element() > threshold as f64
+            })
+            .map(|x| y * rw + x)
+            .collect::<Vec<usize>>()
     };
     let busy: Vec<usize> = with_threads(run.threads, || {
         if parallel() {
-            (0..rw * rh)
-                .into_par_iter()
-                .filter(|&i| is_busy(i))
-                .collect()
+            (0..rh).into_par_iter().flat_map_iter(busy_in_row).collect()
         } else {
-            (0..rw * rh).filter(|&i| is_busy(i)).collect()
+            (0..rh).flat_map(busy_in_row).collect()
         }
     });
     // the waves: each pixel of a wave sampled n × n, its sum kept
@@ -168,12 +178,9 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
         taken[i].store(true, Ordering::Relaxed);
     }
     let mut refined: Vec<Option<Sum<T>>> = vec![None; rw * rh];
-    // pixels from the ring pixel i to the rectangle (0 inside)
-    let ring_distance = |i: usize| {
-        let (x, y) = (
-            (ring.x0 as usize + i % rw) as i64,
-            (ring.y0 as usize + i / rw) as i64,
-        );
+    // pixels from the ring pixel (x, y) to the rectangle (0 inside)
+    let ring_distance = |x: usize, y: usize| {
+        let (x, y) = ((ring.x0 as usize + x) as i64, (ring.y0 as usize + y) as i64);
         let out_x = (rect.x0 as i64 - x).max(x + 1 - rect.x1 as i64).max(0);
         let out_y = (rect.y0 as i64 - y).max(y + 1 - rect.y1 as i64).max(0);
         out_x.max(out_y) as usize
@@ -184,25 +191,17 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
     for k in 0..WAVES as usize {
         bar.inc_length(wave.len() as u64);
         // a pixel of the next wave matters only if it can still reach the rectangle
-        let reaches = |q: usize| ring_distance(q) + k + 2 <= WAVES as usize;
-        let chunk = |ids: &[usize]| {
-            let (mut stats, mut scratch) = (RenderStats::default(), T::Scratch::default());
-            let mut grid = vec![Sum::<T>::default(); nn];
+        let reaches = |x: usize, y: usize| ring_distance(x, y) + k + 2 <= WAVES as usize;
+        // a task's scratch and sample grid, reused over its chunks
+        let init = || (T::Scratch::default(), vec![Sum::<T>::default(); nn]);
+        let chunk = |(scratch, grid): &mut (T::Scratch, Vec<Sum<T>>), ids: &[usize]| {
+            let mut stats = RenderStats::default();
             let (mut sums, mut next) = (Vec::with_capacity(ids.len()), Vec::new());
             for &i in ids {
                 let (x, y) = (i % rw, i / rw);
                 let (sx, sy) = (ring.x0 as usize + x, ring.y0 as usize + y);
                 let (sx, sy) = ((sx * n as usize) as u32, (sy * n as usize) as u32);
-                trace_samples(
-                    tracer,
-                    &fine,
-                    sx,
-                    sy,
-                    n as usize,
-                    &mut grid,
-                    &mut scratch,
-                    &mut stats,
-                );
+                trace_samples(tracer, &fine, sx, sy, n as usize, grid, scratch, &mut stats);
                 sums.push((
                     i,
                     grid.iter()
@@ -210,7 +209,7 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
                 ));
                 if k + 1 < WAVES as usize {
                     let facing = Facing {
-                        grid: &grid,
+                        grid,
                         n: n as usize,
                         at: (x, y),
                         ring: (rw, rh),
@@ -224,9 +223,12 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
         };
         let done: Vec<WaveOut<Sum<T>>> = with_threads(run.threads, || {
             if parallel() {
-                wave.par_chunks(WAVE_CHUNK).map(chunk).collect()
+                wave.par_chunks(WAVE_CHUNK).map_init(init, chunk).collect()
             } else {
-                wave.chunks(WAVE_CHUNK).map(chunk).collect()
+                let mut state = init();
+                wave.chunks(WAVE_CHUNK)
+                    .map(|ids| chunk(&mut state, ids))
+                    .collect()
             }
         });
         wave = Vec::new();
@@ -244,19 +246,20 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
     bar.finish_and_clear();
     // the pixels
     let one = |(k, pixels): (usize, &mut [P])| {
-        for (i, px) in pixels.iter_mut().enumerate() {
-            let (x, y) = (
-                rect.x0 as usize + i % width,
-                rect.y0 as usize + k * BAND + i / width,
-            );
-            let r = (y - ring.y0 as usize) * rw + x - ring.x0 as usize;
-            *px = match refined[r] {
-                Some(sum) => P::resolve::<T::Colors>(sum, nn as u32),
-                None => P::resolve::<T::Colors>(
-                    four(r).into_iter().fold(Default::default(), T::Colors::add),
-                    4,
-                ),
-            };
+        for (j, row) in pixels.chunks_mut(width).enumerate() {
+            let y = rect.y0 as usize + k * BAND + j - ring.y0 as usize;
+            let x0 = (rect.x0 - ring.x0) as usize;
+            for (x, px) in (x0..).zip(row) {
+                *px = match refined[y * rw + x] {
+                    Some(sum) => P::resolve::<T::Colors>(sum, nn as u32),
+                    None => P::resolve::<T::Colors>(
+                        four(x, y)
+                            .into_iter()
+                            .fold(Default::default(), T::Colors::add),
+                        4,
+                    ),
+                };
+            }
         }
     };
     with_threads(run.threads, || {
@@ -286,8 +289,8 @@ impl<S: Copy> Facing<'_, S> {
         &self,
         threshold: f32,
         taken: &[AtomicBool],
-        mean: &impl Fn(usize) -> DVec3,
-        reaches: &impl Fn(usize) -> bool,
+        mean: &impl Fn(usize, usize) -> DVec3,
+        reaches: &impl Fn(usize, usize) -> bool,
         next: &mut Vec<usize>,
     ) {
         let ((x, y), (w, h), n) = (self.at, self.ring, self.n);
@@ -300,10 +303,10 @@ impl<S: Copy> Facing<'_, S> {
         for qy in y.saturating_sub(1)..(y + 2).min(h) {
             for qx in x.saturating_sub(1)..(x + 2).min(w) {
                 let q = qy * w + qx;
-                if !reaches(q) || taken[q].load(Ordering::Relaxed) {
+                if taken[q].load(Ordering::Relaxed) || !reaches(qx, qy) {
                     continue;
                 }
-                let m = mean(q);
+                let m = mean(qx, qy);
                 let (cols, rows) = (facing(qx + 1 - x), facing(qy + 1 - y));
                 let differs = rows
                     .flat_map(|j| cols.clone().map(move |i| j * n + i))
