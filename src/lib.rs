@@ -7,6 +7,7 @@
 //! ARCHITECTURE.md.
 
 pub mod bvh;
+pub mod cache;
 pub mod farm;
 pub mod geometry;
 pub mod math;
@@ -14,5 +15,6 @@ pub mod output;
 pub mod parallel;
 pub mod render;
 pub mod scene;
+pub mod temporaries;
 pub mod tradeoff;
 pub mod viewer;

@@ -324,3 +324,69 @@ fn profile_errors_name_the_key_and_the_allowed_values() {
         }
     }
 }
+
+/// A mesh of 1 MiB or more is stored under `$XDG_CACHE_HOME/octaray/mesh` by the first
+/// render and read from there by the next (the same image, the cache file left as it
+/// was); with `OCTARAY_MESH_CACHE=off` nothing is stored.
+#[cfg(unix)]
+#[test]
+fn large_meshes_are_cached_where_the_environment_says() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = scratch_dir("meshcache");
+    // a 120 × 120 grid of quads in the plane z = 0 under the default camera
+    let mut obj = String::new();
+    for i in 0..=120 {
+        for j in 0..=120 {
+            let (x, y) = (i as f64 * 0.5 - 30.0, j as f64 * 0.5 - 30.0);
+            obj += &format!("v {x:.17} {y:.17} {:.17}\n", 0.001 * (i * j % 7) as f64);
+        }
+    }
+    for i in 0..120 {
+        for j in 0..120 {
+            let a = i * 121 + j + 1;
+            obj += &format!("f {a} {} {} {}\n", a + 121, a + 122, a + 1);
+        }
+    }
+    assert!(obj.len() >= 1 << 20, "{}", obj.len());
+    std::fs::write(dir.join("m.obj"), &obj).unwrap();
+    std::fs::write(
+        dir.join("s.txt"),
+        "1 8 1 mesh m.obj  0.2 0.6 0.9  0.2 0.7 0 0  1  1 0 0 40 1 1 1 0\n",
+    )
+    .unwrap();
+    let render = |out: &str, xdg: &str, off: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_octaray"));
+        c.args([
+            "render", "s.txt", "--size", "24", "--eye", "0,0,40", "-o", out,
+        ])
+        .current_dir(&dir)
+        .env("XDG_CACHE_HOME", dir.join(xdg))
+        .env_remove("OCTARAY_MESH_CACHE");
+        if off {
+            c.env("OCTARAY_MESH_CACHE", "off");
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(dir.join(out)).unwrap()
+    };
+    let cached = |xdg: &str| -> Vec<PathBuf> {
+        match std::fs::read_dir(dir.join(xdg).join("octaray").join("mesh")) {
+            Ok(d) => d.map(|e| e.unwrap().path()).collect(),
+            Err(_) => Vec::new(),
+        }
+    };
+    let first = render("a.bmp", "xdg", false);
+    let files = cached("xdg");
+    assert_eq!(files.len(), 1, "{files:?}");
+    let before = std::fs::metadata(&files[0]).unwrap();
+    assert_eq!(render("b.bmp", "xdg", false), first);
+    let after = std::fs::metadata(&files[0]).unwrap();
+    // (a rewrite would be a new file, renamed into place)
+    assert_eq!(
+        (after.ino(), after.mtime_nsec()),
+        (before.ino(), before.mtime_nsec())
+    );
+    assert_eq!(render("c.bmp", "xdg-off", true), first);
+    assert!(!dir.join("xdg-off").exists());
+    assert!(first.len() > 24 * 24 * 3);
+}

@@ -23,7 +23,7 @@ use crate::geometry::triangle::Triangle32;
 use crate::geometry::triangle::Watertight;
 use crate::geometry::{Hit1, PrimSet};
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
-use crate::scene::obj::{Mesh, ObjError, load_obj};
+use crate::scene::obj::{CacheUse, Mesh, ObjError, load_obj, load_obj_cached};
 use crate::scene::{Material, Object, Scene, Shape};
 
 /// A ray set: origins and unit directions, in packet order (every 8 consecutive rays
@@ -561,15 +561,24 @@ pub fn run(
     );
     crate::parallel::with_threads(Some(threads), || {
         let start = Instant::now();
-        let obj = load_obj(mesh)?;
+        let cache = crate::scene::mesh_cache::dir();
+        let (obj, used) = load_obj_cached(mesh, cache.as_deref())?;
         let load_ms = start.elapsed().as_secs_f64() * 1e3;
+        let how = match used {
+            CacheUse::Read(_) => "read the mesh cache".to_string(),
+            CacheUse::Written(_) => "read and parse the OBJ file, write the mesh cache".into(),
+            CacheUse::Unused => "read and parse the OBJ file".into(),
+            CacheUse::NotWritten(why) => {
+                format!("read and parse the OBJ file; mesh cache not written: {why}")
+            }
+        };
         let (vertices, faces) = (obj.vertices.len(), obj.triangles.len());
         let (tris, dropped) = mesh_triangles(obj);
         // the process's peak memory so far, for the log
         let peak = || peak_rss_mb().map_or_else(String::new, |mb| format!(", peak_rss_MB={mb:.1}"));
         let _ = writeln!(
             log,
-            "octaray mesh: {name}: load_ms={load_ms:.1} (read and parse the OBJ file), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate{}",
+            "octaray mesh: {name}: load_ms={load_ms:.1} ({how}), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate{}",
             peak()
         );
         let Built {

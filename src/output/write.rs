@@ -6,8 +6,6 @@
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use image::ImageFormat;
 
@@ -160,79 +158,48 @@ fn write_target(path: &Path) -> Result<PathBuf, OutputError> {
     Ok(target)
 }
 
-/// Temporary files being written, removed by [`remove_temporaries`] should
-/// the process be interrupted (a signal handler calls it).
-static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
-
 /// Removes the temporary files still being written, for a process about to end (a
 /// signal's handler). The returned lock keeps any new temporary file from appearing:
 /// end the process while holding it.
 pub fn remove_temporaries() -> impl Sized {
-    let list = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
-    for p in list.iter() {
-        let _ = fs::remove_file(p);
-    }
-    list
+    crate::temporaries::remove_all()
 }
 
-/// Writes `bytes` to a fresh temporary file beside `path`, taking the permissions and
-/// (where this process may set them, as root) the owner and group of `like`, the file
-/// it replaces, before the bytes are written; returns its path. Short
-/// name (a long target name plus a suffix would pass the 255-byte limit), created
-/// exclusively (never truncating or following another process's file: two processes
-/// of the same PID, in two containers sharing a directory, take different names).
+/// Writes `bytes` to a fresh temporary file beside `path` ([`crate::temporaries`]),
+/// taking the permissions and (where this process may set them, as root) the owner and
+/// group of `like`, the file it replaces, before the bytes are written; returns its path.
 fn write_temp_bytes(
     path: &Path,
     bytes: &[u8],
     like: Option<&fs::Metadata>,
 ) -> Result<PathBuf, OutputError> {
-    static COUNT: AtomicU32 = AtomicU32::new(0);
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
     let io_error = |source| OutputError::Io {
         path: path.display().to_string(),
         source,
     };
-    loop {
-        let n = COUNT.fetch_add(1, Ordering::Relaxed);
-        let tmp_name = format!(".octaray-{}-{n}.tmp", std::process::id());
-        let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
-        let mut list = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
-        let file = fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp);
-        let mut file = match file {
-            Ok(f) => f,
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
-            Err(e) => return Err(io_error(e)),
-        };
-        list.push(tmp.clone());
-        drop(list);
-        if let Some(like) = like {
-            // (best effort: the mode bits and owner this user may set)
-            #[cfg(unix)]
-            {
-                use std::os::unix::fs::MetadataExt;
-                let _ = std::os::unix::fs::fchown(&file, Some(like.uid()), Some(like.gid()));
-            }
-            let _ = file.set_permissions(like.permissions());
+    let (mut file, tmp) = crate::temporaries::create_beside(path).map_err(io_error)?;
+    if let Some(like) = like {
+        // (best effort: the mode bits and owner this user may set)
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let _ = std::os::unix::fs::fchown(&file, Some(like.uid()), Some(like.gid()));
         }
-        return match io::Write::write_all(&mut file, bytes) {
-            Ok(()) => Ok(tmp),
-            Err(e) => {
-                let _ = fs::remove_file(&tmp);
-                forget_temp(&tmp);
-                Err(io_error(e))
-            }
-        };
+        let _ = file.set_permissions(like.permissions());
+    }
+    match io::Write::write_all(&mut file, bytes) {
+        Ok(()) => Ok(tmp),
+        Err(e) => {
+            let _ = fs::remove_file(&tmp);
+            forget_temp(&tmp);
+            Err(io_error(e))
+        }
     }
 }
 
 /// Forgets a temporary file (renamed into place, or removed).
 fn forget_temp(tmp: &Path) {
-    if let Ok(mut list) = TEMPORARIES.lock() {
-        list.retain(|p| p != tmp);
-    }
+    crate::temporaries::forget(tmp);
 }
 
 /// The encoded image, BMP or PNG by the extension of `path`.

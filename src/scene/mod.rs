@@ -7,6 +7,7 @@
 pub mod camera;
 pub mod camera_path;
 pub mod input;
+pub mod mesh_cache;
 pub mod obj;
 pub mod parse;
 pub mod text;

@@ -94,21 +94,13 @@ impl TruthKey<'_> {
 }
 
 /// Where true pictures are cached when the user names no directory:
-/// `$XDG_CACHE_HOME/octaray/truth`, else `~/.cache/octaray/truth`, else
-/// `target/octaray-truth` under the current directory.
+/// `$XDG_CACHE_HOME/octaray/truth`, else `~/.cache/octaray/truth` ([`crate::cache::root`]),
+/// else `target/octaray-truth` under the current directory.
 pub fn default_cache_dir() -> PathBuf {
-    let var = |k: &str| {
-        std::env::var_os(k)
-            .filter(|v| !v.is_empty())
-            .map(PathBuf::from)
-    };
-    if let Some(d) = var("XDG_CACHE_HOME") {
-        return d.join("octaray").join("truth");
-    }
-    if let Some(h) = var("HOME") {
-        return h.join(".cache").join("octaray").join("truth");
-    }
-    PathBuf::from("target").join("octaray-truth")
+    crate::cache::root().map_or_else(
+        || PathBuf::from("target").join("octaray-truth"),
+        |root| root.join("truth"),
+    )
 }
 
 /// How a true picture was obtained.
