@@ -594,7 +594,7 @@ fn special_files_and_bad_outputs_are_refused_up_front() {
 /// faces loads with a warning.
 #[test]
 fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
-    use octaray::scene::obj::load_obj;
+    use octaray::scene::mesh_cache::load_obj;
     let dir = scratch_dir("objbom");
     let body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     let bom = dir.join("bom.obj");

@@ -23,7 +23,8 @@ use crate::geometry::triangle::Triangle32;
 use crate::geometry::triangle::Watertight;
 use crate::geometry::{Hit1, PrimSet};
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
-use crate::scene::obj::{CacheUse, Mesh, ObjError, load_obj, load_obj_cached};
+use crate::scene::mesh_cache::{CacheUse, load_obj, load_obj_cached};
+use crate::scene::obj::{Mesh, ObjError};
 use crate::scene::{Material, Object, Scene, Shape};
 
 /// A ray set: origins and unit directions, in packet order (every 8 consecutive rays

@@ -27,11 +27,12 @@ use std::ffi::OsStr;
 use std::fs::File;
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::UNIX_EPOCH;
 
 use glam::DVec3;
 
-use super::obj::Mesh;
+use super::obj::{Mesh, ObjError, parse_file};
 
 /// OBJ files from this size on are cached (a smaller one parses in a few milliseconds).
 pub const MIN_SOURCE_BYTES: u64 = 1 << 20;
@@ -46,6 +47,59 @@ const DIGEST_AT: usize = 56;
 /// Bytes per vertex and per triangle in the file.
 const VERTEX_BYTES: usize = 24;
 const TRIANGLE_BYTES: usize = 12;
+
+/// Reads an OBJ file: from the mesh cache (this module) when it holds the
+/// file as it is now, else the text, parsed (and then stored in the cache, if large
+/// enough). A cache that cannot be written costs one warning on stderr per process.
+pub fn load_obj(path: &Path) -> Result<Mesh, ObjError> {
+    let (mesh, cache) = load_obj_cached(path, dir().as_deref())?;
+    if let CacheUse::NotWritten(why) = cache {
+        static WARNED: AtomicBool = AtomicBool::new(false);
+        if !WARNED.swap(true, Ordering::Relaxed) {
+            let _ = writeln!(
+                std::io::stderr(),
+                "octaray: warning: mesh cache not written ({why}); OCTARAY_MESH_CACHE=off turns it off"
+            );
+        }
+    }
+    Ok(mesh)
+}
+
+/// What the mesh cache did in a load.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CacheUse {
+    /// Nothing: no cache directory, or a file the cache does not take (under
+    /// [`MIN_SOURCE_BYTES`], not a regular file, or changed while
+    /// it was read).
+    Unused,
+    /// The mesh was read from this cache file.
+    Read(PathBuf),
+    /// The text was parsed, and the mesh stored in this cache file.
+    Written(PathBuf),
+    /// The text was parsed; the cache could not be written (why).
+    NotWritten(String),
+}
+
+/// [`load_obj`] with the cache in `cache` (`None`: no cache), saying what the cache
+/// did; nothing is printed. The cache never makes a load fail.
+pub fn load_obj_cached(path: &Path, cache: Option<&Path>) -> Result<(Mesh, CacheUse), ObjError> {
+    // (taken before the text is read: a file changed meanwhile is not stored as it was)
+    let source = cache.and_then(|dir| Some((dir, Source::of(path)?)));
+    if let Some((dir, s)) = &source
+        && let Some(mesh) = read(dir, s)
+    {
+        return Ok((mesh, CacheUse::Read(s.cache_file(dir))));
+    }
+    let mesh = parse_file(path)?;
+    let used = match source {
+        Some((dir, s)) if Source::of(path).as_ref() == Some(&s) => match write(dir, &s, &mesh) {
+            Ok(file) => CacheUse::Written(file),
+            Err(e) => CacheUse::NotWritten(format!("{}: {e}", s.cache_file(dir).display())),
+        },
+        _ => CacheUse::Unused,
+    };
+    Ok((mesh, used))
+}
 
 /// The mesh cache's directory: `mesh` under [`crate::cache::root`]; `None` (no cache)
 /// when the environment variable `OCTARAY_MESH_CACHE` is `off` or no root is known.
@@ -330,7 +384,7 @@ mod tests {
     use std::time::{Duration, SystemTime};
 
     use super::*;
-    use crate::scene::obj::{CacheUse, load_obj_cached, parse_obj_bytes};
+    use crate::scene::obj::parse_obj_bytes;
 
     /// An empty directory of this test process.
     fn scratch(tag: &str) -> PathBuf {

@@ -17,9 +17,7 @@
 //! whitespace (on an ASCII line, at its ASCII whitespace: the same words).
 
 use std::fmt;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::path::Path;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -67,62 +65,8 @@ impl fmt::Display for ObjError {
 
 impl std::error::Error for ObjError {}
 
-/// Reads an OBJ file: from the mesh cache ([`super::mesh_cache`]) when it holds the
-/// file as it is now, else the text, parsed (and then stored in the cache, if large
-/// enough). A cache that cannot be written costs one warning on stderr per process.
-pub fn load_obj(path: &Path) -> Result<Mesh, ObjError> {
-    let (mesh, cache) = load_obj_cached(path, super::mesh_cache::dir().as_deref())?;
-    if let CacheUse::NotWritten(why) = cache {
-        static WARNED: AtomicBool = AtomicBool::new(false);
-        if !WARNED.swap(true, Ordering::Relaxed) {
-            let _ = writeln!(
-                std::io::stderr(),
-                "octaray: warning: mesh cache not written ({why}); OCTARAY_MESH_CACHE=off turns it off"
-            );
-        }
-    }
-    Ok(mesh)
-}
-
-/// What the mesh cache did in a load.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum CacheUse {
-    /// Nothing: no cache directory, or a file the cache does not take (under
-    /// [`super::mesh_cache::MIN_SOURCE_BYTES`], not a regular file, or changed while
-    /// it was read).
-    Unused,
-    /// The mesh was read from this cache file.
-    Read(PathBuf),
-    /// The text was parsed, and the mesh stored in this cache file.
-    Written(PathBuf),
-    /// The text was parsed; the cache could not be written (why).
-    NotWritten(String),
-}
-
-/// [`load_obj`] with the cache in `cache` (`None`: no cache), saying what the cache
-/// did; nothing is printed. The cache never makes a load fail.
-pub fn load_obj_cached(path: &Path, cache: Option<&Path>) -> Result<(Mesh, CacheUse), ObjError> {
-    use super::mesh_cache::{Source, read, write};
-    // (taken before the text is read: a file changed meanwhile is not stored as it was)
-    let source = cache.and_then(|dir| Some((dir, Source::of(path)?)));
-    if let Some((dir, s)) = &source
-        && let Some(mesh) = read(dir, s)
-    {
-        return Ok((mesh, CacheUse::Read(s.cache_file(dir))));
-    }
-    let mesh = parse_file(path)?;
-    let used = match source {
-        Some((dir, s)) if Source::of(path).as_ref() == Some(&s) => match write(dir, &s, &mesh) {
-            Ok(file) => CacheUse::Written(file),
-            Err(e) => CacheUse::NotWritten(format!("{}: {e}", s.cache_file(dir).display())),
-        },
-        _ => CacheUse::Unused,
-    };
-    Ok((mesh, used))
-}
-
-/// Reads and parses an OBJ file.
-fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
+/// Reads and parses an OBJ file (no cache: [`super::mesh_cache::load_obj`]).
+pub fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
     let name = path.display().to_string();
     let bytes = super::read_input(path).map_err(|e| ObjError {
         file: name.clone(),

@@ -741,7 +741,7 @@ impl<R: Read> Reader<'_, R> {
                 let field = format!("{who}: path");
                 let t = self.next(&field, "an OBJ file path")?;
                 let base = Path::new(self.file).parent().unwrap_or(Path::new(""));
-                let mesh = super::obj::load_obj(&base.join(&self.text)).map_err(|e| {
+                let mesh = super::mesh_cache::load_obj(&base.join(&self.text)).map_err(|e| {
                     // (the OBJ file's name comes from this file: escaped too)
                     let at = if e.line > 0 {
                         format!(":{}", e.line)
