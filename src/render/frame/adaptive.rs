@@ -137,14 +137,13 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             corners[c + cw + 1],
         ]
     };
-    let mean = |x: usize, y: usize| {
-        T::Colors::linear(
-            four(x, y)
-                .into_iter()
-                .fold(Default::default(), T::Colors::add),
-            4,
-        )
+    // an unrefined pixel: the sum of its four corners
+    let corner_sum = |x: usize, y: usize| {
+        four(x, y)
+            .into_iter()
+            .fold(Default::default(), T::Colors::add)
     };
+    let mean = |x: usize, y: usize| T::Colors::linear(corner_sum(x, y), 4);
     // the busy pixels of ring row y, as ring indices
     let busy_in_row = |y: usize| {
         let linear = |row: usize| -> Vec<DVec3> {
@@ -252,12 +251,7 @@ pub(super) fn render<T: SampleTracer, P: PixelOut>(
             for (x, px) in (x0..).zip(row) {
                 *px = match refined[y * rw + x] {
                     Some(sum) => P::resolve::<T::Colors>(sum, nn as u32),
-                    None => P::resolve::<T::Colors>(
-                        four(x, y)
-                            .into_iter()
-                            .fold(Default::default(), T::Colors::add),
-                        4,
-                    ),
+                    None => P::resolve::<T::Colors>(corner_sum(x, y), 4),
                 };
             }
         }
