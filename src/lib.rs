@@ -15,6 +15,7 @@ pub mod output;
 pub mod parallel;
 pub mod render;
 pub mod scene;
+pub mod simd;
 pub mod temporaries;
 pub mod tradeoff;
 pub mod viewer;

@@ -1,6 +1,7 @@
 //! The `octaray` command line: parses arguments, calls the library, maps errors to
 //! exit codes (2 for bad input, 1 for failures while writing).
 
+use octaray::simd::Isa;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -261,11 +262,30 @@ struct BenchTraceArgs {
     /// Trace repetitions (the best is reported).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
+    /// Instruction set of the kernels: auto (the widest this CPU runs), avx2 (8-lane
+    /// packets) or avx512 (adds the 16-lane packets, mode=16); default: the
+    /// OCTARAY_ISA environment variable, else auto.
+    #[arg(long, value_name = "auto|avx2|avx512")]
+    isa: Option<String>,
+}
+
+/// The instruction set chosen by `--isa`, else by `OCTARAY_ISA`, else the widest the
+/// CPU runs; an unknown name or one this CPU cannot run is an input error naming where
+/// it came from.
+fn chosen_isa(flag: Option<&str>) -> Result<Isa, Failure> {
+    match flag {
+        Some(name) => Isa::parse(name).map_err(|e| Failure::input(format!("--isa: {e}"))),
+        None => Isa::from_env()
+            .map(|i| i.unwrap_or_else(Isa::detect))
+            .map_err(|e| Failure::input(format!("{}: {e}", octaray::simd::isa::ENV))),
+    }
 }
 
 fn run_bench_trace(args: &BenchTraceArgs) -> Result<(), Failure> {
+    let isa = chosen_isa(args.isa.as_deref())?;
     octaray::bvh::bench::run(
         &args.mesh,
+        isa,
         args.threads as usize,
         args.reps as usize,
         &mut std::io::stdout(),

@@ -26,6 +26,7 @@ use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::scene::mesh_cache::{CacheUse, load_obj, load_obj_cached};
 use crate::scene::obj::{Mesh, ObjError};
 use crate::scene::{Material, Object, Scene, Shape};
+use crate::simd::isa::{Avx512, Isa};
 
 /// A ray set: origins and unit directions, in packet order (every 8 consecutive rays
 /// form one packet).
@@ -146,6 +147,9 @@ pub enum Mode {
     Packet8,
     /// `Bvh::intersect_x8_binary`, packets through the binary tree only (`mode=8b`).
     Packet8Binary,
+    /// `Bvh::intersect_x16`, 16 consecutive rays as one packet (the `avx512` kernels;
+    /// the proof that the CPU runs them).
+    Packet16(Avx512),
 }
 
 impl Mode {
@@ -153,6 +157,7 @@ impl Mode {
         match self {
             Mode::Single | Mode::SingleBinary => 1,
             Mode::Packet8 | Mode::Packet8Binary => 8,
+            Mode::Packet16(_) => 16,
         }
     }
 
@@ -163,6 +168,7 @@ impl Mode {
             Mode::SingleBinary => "1b",
             Mode::Packet8 => "8",
             Mode::Packet8Binary => "8b",
+            Mode::Packet16(_) => "16",
         }
     }
 }
@@ -255,6 +261,12 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                     }
                 }
             }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the token proves this CPU has the features the function is
+            // compiled with
+            Mode::Packet16(_) => unsafe { x16::trace(bvh, rays, base, out, &mut steps) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Mode::Packet16(_) => unreachable!("no AVX-512 outside x86-64"),
         }
         steps
     })
@@ -345,9 +357,85 @@ pub fn trace_occluded(bvh: &Bvh, set: &ShadowRays, mode: Mode, out: &mut [u8]) -
                     }
                 }
             }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `trace`
+            Mode::Packet16(_) => unsafe { x16::trace_occluded(bvh, set, base, out, &mut steps) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Mode::Packet16(_) => unreachable!("no AVX-512 outside x86-64"),
         }
         steps
     })
+}
+
+/// The 16-lane traces, compiled with AVX-512 enabled.
+#[cfg(target_arch = "x86_64")]
+mod x16 {
+    use super::{RaySet, ShadowRays, packet};
+    use crate::bvh::{Bvh, Steps};
+    use crate::geometry::triangle::Watertight;
+    use crate::simd::packet::{HitPacket16, RayPacket16, half_mask};
+    use crate::simd::w16::{F16, I16, M16};
+    use crate::simd::{IntLanes as _, LaneMask as _, Lanes as _};
+
+    /// The packet of rays `b..b + n` (n <= 16; missing lanes inactive) and its lanes.
+    #[inline(always)]
+    fn packet16(rays: &RaySet, b: usize, n: usize, active: M16) -> RayPacket16 {
+        let n0 = n.min(8);
+        let h0 = packet(&rays.origin, &rays.dir, b, n0, half_mask(active, 0));
+        let h1 = if n > 8 {
+            packet(&rays.origin, &rays.dir, b + 8, n - 8, half_mask(active, 1))
+        } else {
+            h0
+        };
+        RayPacket16::new([h0, h1])
+    }
+
+    /// Closest hits of 16 consecutive rays at a time (as `super::trace`'s packets).
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
+    pub(super) fn trace(bvh: &Bvh, rays: &RaySet, base: usize, out: &mut [f32], steps: &mut Steps) {
+        for (k, ts) in out.chunks_mut(16).enumerate() {
+            let n = ts.len();
+            let active = M16::from_bits((1u32 << n) - 1);
+            let p = packet16(rays, base + k * 16, n, active);
+            let mut h = HitPacket16 {
+                t: F16::splat(f32::INFINITY),
+                prim: I16::splat(-1),
+                u: F16::zero(),
+                v: F16::zero(),
+            };
+            bvh.intersect_x16::<Watertight>(&p, active, &mut h, steps);
+            let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
+            ts.copy_from_slice(&t[..n]);
+        }
+    }
+
+    /// Shadow rays 16 at a time (as `super::trace_occluded`'s packets).
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
+    pub(super) fn trace_occluded(
+        bvh: &Bvh,
+        set: &ShadowRays,
+        base: usize,
+        out: &mut [u8],
+        steps: &mut Steps,
+    ) {
+        for (k, bs) in out.chunks_mut(16).enumerate() {
+            let b = base + k * 16;
+            let n = bs.len();
+            let mut tm = [0.0f32; 16];
+            tm[..n].copy_from_slice(&set.t_max[b..b + n]);
+            let t_max = F16::from_array(tm);
+            let active = t_max.gt(F16::zero());
+            bs.fill(0);
+            if active.none() {
+                continue;
+            }
+            let p = packet16(&set.rays, b, n, active);
+            let blocked = bvh.occluded_x16::<Watertight>(&p, active, t_max, steps);
+            for (l, x) in bs.iter_mut().enumerate() {
+                *x = (blocked.bits() >> l & 1) as u8;
+            }
+        }
+    }
 }
 
 /// One line of results, in the Embree harness's fields (and two of its own).
@@ -359,6 +447,8 @@ pub struct TraceRun {
     pub rays: &'static str,
     pub threads: usize,
     pub mode: Mode,
+    /// The kernels' instruction set (`avx2`, `avx512`).
+    pub isa: Isa,
     pub tris: usize,
     pub build_ms: f64,
     pub trace_ms: f64,
@@ -382,11 +472,12 @@ impl std::fmt::Display for TraceRun {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "octaray mesh={} rays={} threads={} mode={} tris={} build_ms={:.1} trace_ms={:.1} Mrays/s={:.2} hits={:.4} mean_t={:.6} bytes/tri={:.1}",
+            "octaray mesh={} rays={} threads={} mode={} isa={} tris={} build_ms={:.1} trace_ms={:.1} Mrays/s={:.2} hits={:.4} mean_t={:.6} bytes/tri={:.1}",
             self.mesh,
             self.rays,
             self.threads,
             self.mode.label(),
+            self.isa,
             self.tris,
             self.build_ms,
             self.trace_ms,
@@ -551,6 +642,7 @@ pub fn timed_occluded(
 /// depth, memory by part and steps per ray go to `log`.
 pub fn run(
     mesh: &Path,
+    isa: Isa,
     threads: usize,
     reps: usize,
     out: &mut (dyn std::io::Write + Send),
@@ -624,12 +716,18 @@ pub fn run(
         // shadow set, `primary.shadow`): only those lines, for profiling
         let only = std::env::var("OCTARAY_BENCH_ONLY").unwrap_or_default();
         let (only_rays, only_mode) = only.split_once('/').unwrap_or((&only, ""));
-        let modes = [
-            Mode::Packet8,
-            Mode::Packet8Binary,
-            Mode::Single,
-            Mode::SingleBinary,
-        ];
+        // the 16-lane packets under `avx512` only
+        let modes = isa
+            .avx512_kernels()
+            .map(Mode::Packet16)
+            .into_iter()
+            .chain([
+                Mode::Packet8,
+                Mode::Packet8Binary,
+                Mode::Single,
+                Mode::SingleBinary,
+            ])
+            .collect::<Vec<_>>();
         let modes = modes
             .iter()
             .filter(|m| only_mode.is_empty() || only_mode == m.label());
@@ -642,6 +740,7 @@ pub fn run(
                 rays,
                 threads,
                 mode,
+                isa,
                 tris: ntris,
                 build_ms,
                 trace_ms,
@@ -662,7 +761,7 @@ pub fn run(
                 run.boxes_per_ray,
                 match mode {
                     Mode::Single => "wide node tests (8 boxes each)",
-                    Mode::Packet8 =>
+                    Mode::Packet8 | Mode::Packet16(_) =>
                         "node tests (8-wide: per packet when the signs agree, per lane when not)",
                     _ => "box tests",
                 },

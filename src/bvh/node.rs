@@ -7,6 +7,7 @@ use super::slot::Slot;
 use crate::geometry::PrimKind;
 use crate::math::Aabb;
 use crate::math::packet::{Cmp8, FAR_WIDEN, Mask8, Ray1, RayPacket8};
+use crate::simd;
 
 /// A node of the flat BVH array. 32 B, two per cache line, 32-byte aligned.
 ///
@@ -98,17 +99,32 @@ impl BvhNode {
     /// entry distance.
     #[inline(always)]
     pub fn intersect_x8_near(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> (Mask8, f32x8) {
-        let slab = |lo: f32, hi: f32, o: f32x8, inv: f32x8| {
-            let t0 = (f32x8::splat(lo) - o) * inv;
-            let t1 = (f32x8::splat(hi) - o) * inv;
+        let a = |v: crate::math::packet::Vec3x8| [v.x, v.y, v.z];
+        self.intersect_lanes(a(r.origin), a(r.inv_dir), active, t_max)
+    }
+
+    /// [`BvhNode::intersect_x8_near`] at any width, on the lanes' origins and 1/d.
+    #[inline(always)]
+    pub fn intersect_lanes<L: simd::Lanes>(
+        &self,
+        origin: [L; 3],
+        inv_dir: [L; 3],
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L) {
+        // a function, not a closure (see `simd::packet`)
+        #[inline(always)]
+        fn slab<L: simd::Lanes>(lo: f32, hi: f32, o: L, inv: L) -> (L, L) {
+            let t0 = (L::splat(lo) - o) * inv;
+            let t1 = (L::splat(hi) - o) * inv;
             (t0.fast_min(t1), t0.fast_max(t1))
-        };
-        let (nx, fx) = slab(self.lo[0], self.hi[0], r.origin.x, r.inv_dir.x);
-        let (ny, fy) = slab(self.lo[1], self.hi[1], r.origin.y, r.inv_dir.y);
-        let (nz, fz) = slab(self.lo[2], self.hi[2], r.origin.z, r.inv_dir.z);
-        let near = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::ZERO));
+        }
+        let (nx, fx) = slab(self.lo[0], self.hi[0], origin[0], inv_dir[0]);
+        let (ny, fy) = slab(self.lo[1], self.hi[1], origin[1], inv_dir[1]);
+        let (nz, fz) = slab(self.lo[2], self.hi[2], origin[2], inv_dir[2]);
+        let near = nx.fast_max(ny).fast_max(nz.fast_max(L::zero()));
         // widened after clamping to t_max: see `intersect_1`
-        let far = fx.fast_min(fy).fast_min(fz).fast_min(t_max) * f32x8::splat(FAR_WIDEN);
+        let far = fx.fast_min(fy).fast_min(fz).fast_min(t_max) * L::splat(FAR_WIDEN);
         (active & near.le(far), near)
     }
 

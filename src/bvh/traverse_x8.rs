@@ -130,7 +130,7 @@ impl Bvh {
     /// −1 (never) for a tree of fewer than [`WIDE_PACKET_MIN_NODES`] wide nodes, where
     /// building the frustum costs more than the few binary steps it saves.
     #[inline]
-    fn frustum_spread(&self) -> f32 {
+    pub(crate) fn frustum_spread(&self) -> f32 {
         if self.wide.nodes.len() >= WIDE_PACKET_MIN_NODES {
             FRUSTUM_SPREAD
         } else {
@@ -322,7 +322,7 @@ impl Bvh {
 
     /// The unbounded quadrics, then the floor.
     #[inline]
-    fn intersect_beside_x8<T: TriangleKernel>(
+    pub(crate) fn intersect_beside_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
@@ -412,20 +412,17 @@ impl Bvh {
         self.occluded_x8_with::<T>(r, active, t_max, None, steps)
     }
 
-    /// The any-hit query: the list beside the tree, then the wide tree when
-    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
-    /// packet is coherent enough, else the binary one.
-    #[inline(always)]
-    fn occluded_x8_with<T: TriangleKernel>(
+    /// The lanes of `active` not blocked by the floor or the unbounded quadrics (with
+    /// 0 < t < t_max): tested first, one cheap test that often settles a shadow ray.
+    #[inline]
+    pub(crate) fn occluded_beside_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
         active: Mask8,
         t_max: f32x8,
-        wide_octant: Option<(u32, f32)>,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = active;
-        // the floor and the unbounded list first: one cheap test that often settles it
         if self.prims.floor.is_some() {
             steps.prims += 1;
             left = left.and_not(
@@ -446,6 +443,22 @@ impl Bvh {
                 t_max,
             ));
         }
+        left
+    }
+
+    /// The any-hit query: the list beside the tree, then the wide tree when
+    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
+    /// packet is coherent enough, else the binary one.
+    #[inline(always)]
+    fn occluded_x8_with<T: TriangleKernel>(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        wide_octant: Option<(u32, f32)>,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
         let frustum = match wide_octant {
             Some((octant, spread)) if left.any() => {
                 self.occluded_x8_wide::<T>(r, left & finite_lanes(r), octant, spread, t_max, steps)

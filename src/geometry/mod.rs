@@ -18,13 +18,15 @@ pub mod sphere;
 pub mod triangle;
 
 use glam::{DVec3, Vec3};
-use wide::{f32x8, i32x8};
+use wide::f32x8;
 
 use crate::math::Aabb;
 use crate::math::Ray;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
 use crate::scene::parse::is_degenerate_triangle;
 use crate::scene::{Scene, Shape};
+use crate::simd;
+use crate::simd::packet::HitLanes;
 use triangle::TriangleKernel;
 
 /// What a reference kernel reports for a hit: the distance, for triangles the
@@ -502,24 +504,53 @@ impl PrimSet {
         uv: (f32x8, f32x8),
         code: i32,
     ) {
+        let mut h = HitLanes {
+            t: hit.t,
+            prim: hit.prim,
+            u: hit.u,
+            v: hit.v,
+        };
+        self.record_lanes(&mut h, m, t, uv, code);
+        *hit = HitPacket8 {
+            t: h.t,
+            prim: h.prim,
+            u: h.u,
+            v: h.v,
+        };
+    }
+
+    /// [`PrimSet::record_x8`] at any width.
+    #[inline(always)]
+    pub(crate) fn record_lanes<L: simd::Lanes>(
+        &self,
+        hit: &mut HitLanes<L>,
+        m: L::Mask,
+        t: L,
+        uv: (L, L),
+        code: i32,
+    ) {
+        use simd::{IntLanes as _, LaneMask as _};
         let mut closer = m & t.lt(hit.t);
-        let tie = m & t.eq8(hit.t) & hit.hit_mask();
+        let tie = m & t.eq(hit.t) & hit.prim.non_negative();
         if tie.any() {
             let mut extra = 0;
-            for lane in 0..8 {
-                if tie.lane(lane) && self.wins_tie(code, hit.prim_lane(lane)) {
+            let mut bits = tie.bits();
+            while bits != 0 {
+                let lane = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if self.wins_tie(code, hit.prim.lane(lane)) {
                     extra |= 1 << lane;
                 }
             }
-            closer = closer | Mask8::from_bits(extra);
+            closer = closer | L::Mask::from_bits(extra);
         }
         if closer.none() {
             return;
         }
-        hit.t = closer.select(t, hit.t);
-        hit.prim = closer.select_i32(i32x8::splat(code), hit.prim);
-        hit.u = closer.select(uv.0, hit.u);
-        hit.v = closer.select(uv.1, hit.v);
+        hit.t = L::select(closer, t, hit.t);
+        hit.prim = L::Int::select(closer, L::Int::splat(code), hit.prim);
+        hit.u = L::select(closer, uv.0, hit.u);
+        hit.v = L::select(closer, uv.1, hit.v);
     }
 
     /// Single-ray twin of [`PrimSet::record_x8`].

@@ -12,7 +12,9 @@ use glam::Vec3;
 use wide::f32x8;
 
 use super::triangle::{Hits8, Triangle8, Triangle32, TriangleKernel};
-use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8};
+use crate::math::packet::{Mask8, Ray1, RayPacket8, Vec3x8};
+use crate::simd;
+use crate::simd::packet::{RayLanes, cross3, dot3, sub3};
 
 /// The Möller–Trumbore test as a [`TriangleKernel`].
 #[derive(Clone, Copy, Debug, Default)]
@@ -47,6 +49,16 @@ impl TriangleKernel for Moller {
     }
 
     #[inline(always)]
+    fn intersect_splat_lanes<L: simd::Lanes>(
+        v: [[L; 3]; 3],
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L) {
+        any_width(v, r.origin, r.dir, active, t_max)
+    }
+
+    #[inline(always)]
     fn intersect_1x8<const KZ: usize>(
         b: &Triangle8,
         r: &MollerRay8,
@@ -59,28 +71,40 @@ impl TriangleKernel for Moller {
 }
 
 /// Eight tests at once, lane i: triangle `v[..]` lane i against ray (o, d) lane i
-/// (the packet kernel splats the triangle, the 1×8 kernel the ray); the operations of
-/// [`intersect_1`] in its order.
+/// (the packet kernel splats the triangle, the 1×8 kernel the ray).
 #[inline(always)]
 fn lanes(v: [Vec3x8; 3], o: Vec3x8, d: Vec3x8, active: Mask8, t_max: f32x8) -> Hits8 {
-    let zero = f32x8::ZERO;
+    let a = |p: Vec3x8| [p.x, p.y, p.z];
+    any_width(v.map(a), a(o), a(d), active, t_max)
+}
+
+/// [`lanes`] at any width: the operations of [`intersect_1`] in its order.
+#[inline(always)]
+fn any_width<L: simd::Lanes>(
+    v: [[L; 3]; 3],
+    o: [L; 3],
+    d: [L; 3],
+    active: L::Mask,
+    t_max: L,
+) -> (L::Mask, L, L, L) {
+    let (zero, one) = (L::zero(), L::splat(1.0));
     let [v0, v1, v2] = v;
-    let (e1, e2) = (v1 - v0, v2 - v0);
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    let inv = f32x8::splat(1.0) / det;
-    let s = o - v0;
-    let b1 = s.dot(p) * inv;
-    let q = s.cross(e1);
-    let b2 = d.dot(q) * inv;
-    let t = e2.dot(q) * inv;
+    let (e1, e2) = (sub3(v1, v0), sub3(v2, v0));
+    let p = cross3(d, e2);
+    let det = dot3(e1, p);
+    let inv = one / det;
+    let s = sub3(o, v0);
+    let b1 = dot3(s, p) * inv;
+    let q = cross3(s, e1);
+    let b2 = dot3(d, q) * inv;
+    let t = dot3(e2, q) * inv;
     // NaN (det = 0) fails every comparison
     let m = active
-        & !det.eq8(zero)
+        & !det.eq(zero)
         & b1.ge(zero)
-        & b1.le(f32x8::splat(1.0))
+        & b1.le(one)
         & b2.ge(zero)
-        & (b1 + b2).le(f32x8::splat(1.0))
+        & (b1 + b2).le(one)
         & t.gt(zero)
         & t.le(t_max);
     (m, t, b1, b2)

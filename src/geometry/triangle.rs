@@ -18,6 +18,8 @@ use crate::math::Ray;
 use crate::math::float::gamma;
 use crate::math::packet::{Cmp8, Mask8, Ray1, RayPacket8, Vec3x8, gamma32};
 use crate::scene::parse::is_degenerate_triangle;
+use crate::simd;
+use crate::simd::packet::{RayLanes, sub3};
 
 // ---------------------------------------------------------------- reference (f64)
 
@@ -294,14 +296,21 @@ pub fn intersect_splat_x8(
     sheared_x8(p, r.shear.z, active, t_max)
 }
 
-/// The watertight test from the sheared vertices on, on eight lanes (one ray against
-/// eight triangles or eight rays against one): edge functions, the sign rule, the
-/// distance compared without dividing and its rounding bound. `p`: the vertices
-/// translated to the ray origin, permuted, and sheared in x and y (z not yet scaled);
-/// `shear_z`: 1/d[kz].
+/// The watertight test from the sheared vertices on, at any width (one ray against
+/// eight triangles, or eight or sixteen rays against one): edge functions, the sign
+/// rule, the distance compared without dividing and its rounding bound. `p`: the
+/// vertices translated to the ray origin, permuted, and sheared in x and y (z not yet
+/// scaled); `shear_z`: 1/d[kz]. Every width runs the same operations in the same order,
+/// so a lane's answer does not depend on the width (`tests/lanes.rs`).
 #[inline(always)]
-fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -> Hits8 {
-    let zero = f32x8::ZERO;
+pub(crate) fn sheared<L: simd::Lanes>(
+    p: [[L; 3]; 3],
+    shear_z: L,
+    active: L::Mask,
+    t_max: L,
+) -> (L::Mask, L, L, L) {
+    use crate::simd::LaneMask as _;
+    let zero = L::zero();
     // edge functions
     let e0 = p[1][0] * p[2][1] - p[1][1] * p[2][0];
     let e1 = p[2][0] * p[0][1] - p[2][1] * p[0][0];
@@ -310,7 +319,7 @@ fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -
     let any_neg = e0.lt(zero) | e1.lt(zero) | e2.lt(zero);
     let any_pos = e0.gt(zero) | e1.gt(zero) | e2.gt(zero);
     let det = e0 + e1 + e2;
-    let valid = active.and_not(any_neg & any_pos).and_not(det.eq8(zero));
+    let valid = active.and_not(any_neg & any_pos).and_not(det.eq(zero));
     if valid.none() {
         return (valid, zero, zero, zero);
     }
@@ -318,32 +327,45 @@ fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -
     // `Triangle32::intersect_1`)
     let z = [p[0][2] * shear_z, p[1][2] * shear_z, p[2][2] * shear_z];
     let t_scaled = e0 * z[0] + e1 * z[1] + e2 * z[2];
-    let sign = det & f32x8::splat(-0.0);
-    let ts = t_scaled ^ sign; // |det|-scaled t with the sign of det removed
+    let ts = t_scaled.xor_sign(det); // |det|-scaled t with the sign of det removed
     let adet = det.abs();
-    let t_lim = t_max * f32x8::splat(1.0 + 4.0 * f32::EPSILON);
+    let t_lim = t_max * L::splat(1.0 + 4.0 * f32::EPSILON);
     let valid = valid & ts.gt(zero) & ts.le(t_lim * adet);
     if valid.none() {
         return (valid, zero, zero, zero);
     }
-    let inv_det = f32x8::splat(1.0) / det;
+    let inv_det = L::splat(1.0) / det;
     let t = t_scaled * inv_det;
     // t must be positive beyond its own rounding error (pbrt-v4's bound)
-    let amax = |a: f32x8, b: f32x8, c: f32x8| a.abs().max(b.abs()).max(c.abs());
+    // (functions, not closures: a closure is compiled without the AVX-512 of the
+    // function it is inlined into, and would call each 16-lane operation)
+    #[inline(always)]
+    fn amax<L: simd::Lanes>(a: L, b: L, c: L) -> L {
+        a.abs().max(b.abs()).max(c.abs())
+    }
     let max_z = amax(z[0], z[1], z[2]);
     let max_x = amax(p[0][0], p[1][0], p[2][0]);
     let max_y = amax(p[0][1], p[1][1], p[2][1]);
-    let g = |n| f32x8::splat(gamma32(n));
-    let delta_z = g(3) * max_z;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
-    let delta_e = f32x8::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let (g2, g3, g5) = (
+        L::splat(gamma32(2)),
+        L::splat(gamma32(3)),
+        L::splat(gamma32(5)),
+    );
+    let delta_z = g3 * max_z;
+    let delta_x = g5 * (max_x + max_z);
+    let delta_y = g5 * (max_y + max_z);
+    let delta_e = L::splat(2.0) * (g2 * max_x * max_y + delta_y * max_x + delta_x * max_y);
     let max_e = amax(e0, e1, e2);
-    let delta_t = f32x8::splat(3.0)
-        * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
-        * inv_det.abs();
+    let delta_t =
+        L::splat(3.0) * (g3 * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
     let valid = valid & t.gt(delta_t) & t.le(t_max);
     (valid, t, e1 * inv_det, e2 * inv_det)
+}
+
+/// [`sheared`] on eight lanes.
+#[inline(always)]
+fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -> Hits8 {
+    sheared::<f32x8>(p, shear_z, active, t_max)
 }
 
 // ------------------------------------------- fast path, one ray against 8 triangles
@@ -493,6 +515,15 @@ pub trait TriangleKernel: Copy + Send + Sync + 'static {
     /// The triangle whose vertices `v` are given splatted against a packet.
     fn intersect_splat_x8(v: [Vec3x8; 3], r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8;
 
+    /// The triangle whose vertices `v` are given splatted against a packet of any
+    /// width; lane for lane what [`TriangleKernel::intersect_splat_x8`] returns.
+    fn intersect_splat_lanes<L: simd::Lanes>(
+        v: [[L; 3]; 3],
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L);
+
     /// One ray (whose largest direction component is axis `KZ`) against the eight
     /// triangles of a block: lane i is triangle i.
     fn intersect_1x8<const KZ: usize>(
@@ -558,6 +589,26 @@ impl TriangleKernel for Watertight {
     #[inline(always)]
     fn intersect_splat_x8(v: [Vec3x8; 3], r: &RayPacket8, active: Mask8, t_max: f32x8) -> Hits8 {
         intersect_splat_x8(v, r, active, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_splat_lanes<L: simd::Lanes>(
+        v: [[L; 3]; 3],
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L) {
+        // the steps of `intersect_splat_x8` (no closures: see `sheared`)
+        let mut p = [
+            r.permute(sub3(v[0], r.origin)),
+            r.permute(sub3(v[1], r.origin)),
+            r.permute(sub3(v[2], r.origin)),
+        ];
+        for q in &mut p {
+            q[0] = q[0] + r.shear[0] * q[2];
+            q[1] = q[1] + r.shear[1] * q[2];
+        }
+        sheared(p, r.shear[2], active, t_max)
     }
 
     #[inline(always)]

@@ -19,6 +19,8 @@
 
 pub mod collapse;
 pub mod walk_1;
+#[cfg(target_arch = "x86_64")]
+pub mod walk_x16;
 pub mod walk_x8;
 
 use wide::f32x8;

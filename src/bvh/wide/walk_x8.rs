@@ -34,9 +34,12 @@ use super::{Pending, TriBlock, WIDE_STACK, WideBvh};
 use crate::bvh::node::BvhNode;
 use crate::bvh::slot::{SlotRef, Stack};
 use crate::bvh::{Bvh, Steps};
+use crate::geometry::PrimSet;
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, prim_code};
 use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8};
+use crate::simd;
+use crate::simd::packet::{all_eq, dot3, max_in, min_in};
 
 /// Largest spread of a packet served by the wide packet walk (radians between lane
 /// directions; origins: this fraction of the tree's diagonal); wider packets take the
@@ -61,88 +64,71 @@ pub(crate) struct Frustum {
     r_hi: [f32x8; 3],
 }
 
-/// The least lane of `v` in every lane (a butterfly: three swaps and three
-/// minima). No lane may be NaN (`fast_min`).
-#[inline(always)]
-fn splat_min(v: f32x8) -> f32x8 {
-    let a = v.to_array();
-    let v = v.fast_min(f32x8::new([a[4], a[5], a[6], a[7], a[0], a[1], a[2], a[3]]));
-    let a = v.to_array();
-    let v = v.fast_min(f32x8::new([a[2], a[3], a[0], a[1], a[6], a[7], a[4], a[5]]));
-    let a = v.to_array();
-    v.fast_min(f32x8::new([a[1], a[0], a[3], a[2], a[5], a[4], a[7], a[6]]))
-}
-
-/// The largest lane of `v` in every lane (as [`splat_min`]).
-#[inline(always)]
-fn splat_max(v: f32x8) -> f32x8 {
-    let a = v.to_array();
-    let v = v.fast_max(f32x8::new([a[4], a[5], a[6], a[7], a[0], a[1], a[2], a[3]]));
-    let a = v.to_array();
-    let v = v.fast_max(f32x8::new([a[2], a[3], a[0], a[1], a[6], a[7], a[4], a[5]]));
-    let a = v.to_array();
-    v.fast_max(f32x8::new([a[1], a[0], a[3], a[2], a[5], a[4], a[7], a[6]]))
-}
-
-/// Least of the lanes of `v` in `m` (+∞ when none), splatted. No NaN lane in `m`.
-#[inline(always)]
-fn hmin(v: f32x8, m: Mask8) -> f32x8 {
-    splat_min(m.select(v, f32x8::splat(f32::INFINITY)))
-}
-
-/// Largest of the lanes of `v` in `m` (−∞ when none), splatted. No NaN lane in `m`.
-#[inline(always)]
-fn hmax(v: f32x8, m: Mask8) -> f32x8 {
-    splat_max(m.select(v, f32x8::splat(f32::NEG_INFINITY)))
-}
-
 impl Frustum {
     /// The frustum of the lanes `act` (non-empty, finite, all with the direction signs
-    /// of `octant`: bit k set when 1/d < 0 on axis k).
+    /// of `octant`: bit k set when 1/d < 0 on axis k) of a packet of any width, given
+    /// its origins `o`, unit directions `d` and 1/d `inv`.
     /// `None` when the lanes are too far apart for one frustum to serve them: their
     /// directions more than `spread` radians from the first lane's (unit directions),
     /// or their origins spread over more than `spread` times `size` (the tree's
     /// diagonal) on an axis.
     #[inline(always)]
-    pub(super) fn new(
-        r: &RayPacket8,
-        act: Mask8,
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new<L: simd::Lanes>(
+        o: [L; 3],
+        d: [L; 3],
+        inv: [L; 3],
+        act: L::Mask,
         octant: u32,
         spread: f32,
         size: f32,
     ) -> Option<Frustum> {
-        let o = [r.origin.x, r.origin.y, r.origin.z];
-        let inv = [r.inv_dir.x, r.inv_dir.y, r.inv_dir.z];
+        use simd::LaneMask as _;
         let neg = [0, 1, 2].map(|a| (octant >> a & 1) as usize);
         let first = act.bits().trailing_zeros() as usize;
-        // one origin for every lane (a camera's packets): its splat is both bounds, no
-        // six reductions
-        let o0 = Vec3x8::splat(r.origin.lane(first));
-        let o0 = [o0.x, o0.y, o0.z];
-        let apart = act.and_not(o[0].eq8(o0[0]) & o[1].eq8(o0[1]) & o[2].eq8(o0[2]));
-        let (o_lo, o_hi) = if apart.none() {
-            (o0, o0)
-        } else {
-            (
-                [0, 1, 2].map(|a| hmin(o[a], act)),
-                [0, 1, 2].map(|a| hmax(o[a], act)),
-            )
-        };
-        let d0 = Vec3x8::splat(r.dir.lane(first));
-        let cos = hmin(r.dir.dot(d0), act).to_array()[0];
+        // one origin for every lane (a camera's packets): it is both bounds, no six
+        // reductions (no closures over lanes: see `simd::packet`)
+        let o0 = [o[0].lane(first), o[1].lane(first), o[2].lane(first)];
+        let (o_lo, o_hi) =
+            if all_eq(o[0], o0[0], act) && all_eq(o[1], o0[1], act) && all_eq(o[2], o0[2], act) {
+                (o0, o0)
+            } else {
+                (
+                    [min_in(o[0], act), min_in(o[1], act), min_in(o[2], act)],
+                    [max_in(o[0], act), max_in(o[1], act), max_in(o[2], act)],
+                )
+            };
+        let d0 = [
+            L::splat(d[0].lane(first)),
+            L::splat(d[1].lane(first)),
+            L::splat(d[2].lane(first)),
+        ];
+        let cos = min_in(dot3(d, d0), act);
+        let (r_lo, r_hi) = (
+            [
+                min_in(inv[0], act),
+                min_in(inv[1], act),
+                min_in(inv[2], act),
+            ],
+            [
+                max_in(inv[0], act),
+                max_in(inv[1], act),
+                max_in(inv[2], act),
+            ],
+        );
         let ext = (o_hi[0] - o_lo[0])
-            .fast_max(o_hi[1] - o_lo[1])
-            .fast_max(o_hi[2] - o_lo[2])
-            .to_array()[0];
+            .max(o_hi[1] - o_lo[1])
+            .max(o_hi[2] - o_lo[2]);
         // (1 − cos θ ≈ θ²/2; an infinite spread lets every packet through)
         if cos < 1.0 - 0.5 * spread * spread || ext > spread * size {
             return None;
         }
+        let s = f32x8::splat;
         Some(Frustum {
-            o_near: [0, 1, 2].map(|a| if neg[a] == 0 { o_hi[a] } else { o_lo[a] }),
-            o_far: [0, 1, 2].map(|a| if neg[a] == 0 { o_lo[a] } else { o_hi[a] }),
-            r_lo: [0, 1, 2].map(|a| hmin(inv[a], act)),
-            r_hi: [0, 1, 2].map(|a| hmax(inv[a], act)),
+            o_near: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_hi[a] } else { o_lo[a] })),
+            o_far: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_lo[a] } else { o_hi[a] })),
+            r_lo: r_lo.map(s),
+            r_hi: r_hi.map(s),
         })
     }
 
@@ -239,17 +225,18 @@ pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
     Some(oct)
 }
 
-/// The vertices of triangle `j` of a block, splatted for the packet kernel (the block
+/// The vertices of triangle `j` of a block, splatted for a packet kernel (the block
 /// holds the triangle's floats, copied; one broadcast from memory each).
 #[inline(always)]
-fn block_vertices(b: &TriBlock, j: usize) -> [Vec3x8; 3] {
-    // by reference: a `map` over the arrays by value copied each to the stack first
-    let lane = |c: &f32x8| f32x8::splat(c.as_array()[j]);
-    let vertex = |p: &[f32x8; 3]| Vec3x8::new(lane(&p[0]), lane(&p[1]), lane(&p[2]));
+pub(super) fn block_vertices<L: simd::Lanes>(b: &TriBlock, j: usize) -> [[L; 3]; 3] {
+    // by reference (a `map` over the arrays by value copied each to the stack first),
+    // and no closure (see `simd::packet`)
+    let v = &b.tri.v;
+    let c = |i: usize, a: usize| v[i][a].as_array()[j];
     [
-        vertex(&b.tri.v[0]),
-        vertex(&b.tri.v[1]),
-        vertex(&b.tri.v[2]),
+        [L::splat(c(0, 0)), L::splat(c(0, 1)), L::splat(c(0, 2))],
+        [L::splat(c(1, 0)), L::splat(c(1, 1)), L::splat(c(1, 2))],
+        [L::splat(c(2, 0)), L::splat(c(2, 1)), L::splat(c(2, 2))],
     ]
 }
 
@@ -263,6 +250,119 @@ fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
         first: 0,
         hi: [c(1), c(3), c(5)],
         slot: crate::bvh::slot::Slot::INTERIOR,
+    }
+}
+
+/// A packet the frustum walks trace: eight lanes ([`RayPacket8`]) or sixteen
+/// ([`RayPacket16`], the `avx512` kernels). What differs between the widths is here;
+/// the walks are one code.
+pub(crate) trait WidePacket {
+    type L: simd::Lanes;
+    type Hit;
+    /// Origins, unit directions and 1/d of the lanes.
+    fn rays(&self) -> [[Self::L; 3]; 3];
+    /// The lanes' nearest hit so far.
+    fn hit_t(hit: &Self::Hit) -> Self::L;
+    /// Triangle `j` of block `b` against the lanes `act`: hits with 0 < t <= t_max.
+    fn triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        j: usize,
+        act: Mask<Self>,
+        t_max: Self::L,
+    ) -> (Mask<Self>, Self::L, Self::L, Self::L);
+    /// Records hits of primitive `code` (as [`PrimSet::record_x8`]).
+    fn record(
+        prims: &PrimSet,
+        hit: &mut Self::Hit,
+        m: Mask<Self>,
+        t: Self::L,
+        uv: (Self::L, Self::L),
+        code: i32,
+    );
+    /// A leaf of spheres or clipped quadrics (closest hit).
+    #[allow(clippy::too_many_arguments)]
+    fn other_leaf<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        act: Mask<Self>,
+        hit: &mut Self::Hit,
+    );
+    /// A leaf of spheres or clipped quadrics (any hit): the lanes of `left` blocked.
+    #[allow(clippy::too_many_arguments)]
+    fn other_leaf_occluded<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        left: Mask<Self>,
+        t_max: Self::L,
+    ) -> Mask<Self>;
+}
+
+/// A packet's lane mask.
+pub(crate) type Mask<P> = <<P as WidePacket>::L as simd::Lanes>::Mask;
+
+impl WidePacket for RayPacket8 {
+    type L = f32x8;
+    type Hit = HitPacket8;
+    #[inline(always)]
+    fn rays(&self) -> [[f32x8; 3]; 3] {
+        [self.origin, self.dir, self.inv_dir].map(|v| [v.x, v.y, v.z])
+    }
+    #[inline(always)]
+    fn hit_t(hit: &HitPacket8) -> f32x8 {
+        hit.t
+    }
+    #[inline(always)]
+    fn triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        j: usize,
+        act: Mask8,
+        t_max: f32x8,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        let v = block_vertices::<f32x8>(b, j).map(|p| Vec3x8::new(p[0], p[1], p[2]));
+        T::intersect_splat_x8(v, self, act, t_max)
+    }
+    #[inline(always)]
+    fn record(
+        prims: &PrimSet,
+        hit: &mut HitPacket8,
+        m: Mask8,
+        t: f32x8,
+        uv: (f32x8, f32x8),
+        code: i32,
+    ) {
+        prims.record_x8(hit, m, t, uv, code);
+    }
+    #[inline(always)]
+    fn other_leaf<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        act: Mask8,
+        hit: &mut HitPacket8,
+    ) {
+        prims.intersect_x8::<T>(kind, first, count, self, act, hit);
+    }
+    #[inline(always)]
+    fn other_leaf_occluded<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        left: Mask8,
+        t_max: f32x8,
+    ) -> Mask8 {
+        prims.occluded_x8::<T>(kind, first, count, self, left, t_max)
     }
 }
 
@@ -281,23 +381,23 @@ impl Bvh {
         steps: &mut Steps,
     ) -> bool {
         let w = &self.wide;
-        let act = active;
-        if w.nodes.is_empty() || act.none() {
+        if w.nodes.is_empty() || active.none() {
             return true;
         }
-        let Some(fr) = Frustum::new(r, act, octant, spread, w.diagonal) else {
+        let [o, d, inv] = r.rays();
+        let Some(fr) = Frustum::new(o, d, inv, active, octant, spread, w.diagonal) else {
             return false;
         };
         // the walk specialised to the direction signs (fixed entry and exit planes)
         with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_walk_x8::<T>(r, act, &fr, hit, steps)
+            self.frustum_walk_x8::<T>(r, active, &fr, hit, steps)
         );
         true
     }
 
-    /// The frustum walk of [`Bvh::intersect_x8_wide`] for lanes of direction signs `OCT`.
+    /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant.
     fn frustum_walk_x8<T: TriangleKernel, const OCT: u32>(
         &self,
         r: &RayPacket8,
@@ -306,9 +406,22 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
+        self.frustum_walk::<RayPacket8, T, OCT>(r, act, fr, hit, steps);
+    }
+
+    /// The frustum walk of a packet (lanes `act`) of direction signs `OCT`, at any width.
+    #[inline(always)]
+    pub(crate) fn frustum_walk<P: WidePacket, T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &P,
+        act: Mask<P>,
+        fr: &Frustum,
+        hit: &mut P::Hit,
+        steps: &mut Steps,
+    ) {
         let w = &self.wide;
         // the largest nearest hit of the lanes: nothing entered beyond it can be nearer
-        let mut t_hi = hmax(hit.t, act).to_array()[0];
+        let mut t_hi = max_in(P::hit_t(hit), act);
         let mut stack = Stack::<Pending, WIDE_STACK>::new();
         let mut cur = SlotRef::ROOT;
         'walk: loop {
@@ -329,8 +442,8 @@ impl Bvh {
                     cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
                     continue 'walk;
                 }
-            } else if self.leaf_intersect_x8::<T, OCT>(cur, r, act, fr, t_hi, hit, steps) {
-                t_hi = hmax(hit.t, act).to_array()[0];
+            } else if self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps) {
+                t_hi = max_in(P::hit_t(hit), act);
             }
             // pop the next subtree some lane may still enter before its nearest hit
             loop {
@@ -347,25 +460,26 @@ impl Bvh {
 
     /// A leaf of the wide packet walk; whether any lane's hit changed.
     #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn leaf_intersect_x8<T: TriangleKernel, const OCT: u32>(
+    #[inline(always)]
+    fn leaf_intersect<P: WidePacket, T: TriangleKernel, const OCT: u32>(
         &self,
         leaf: SlotRef,
-        r: &RayPacket8,
-        act: Mask8,
+        r: &P,
+        act: Mask<P>,
         fr: &Frustum,
         t_hi: f32,
-        hit: &mut HitPacket8,
+        hit: &mut P::Hit,
         steps: &mut Steps,
     ) -> bool {
+        use simd::LaneMask as _;
         let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
         let first = leaf.child as usize;
         if kind != PrimKind::Triangle {
             steps.leaf(kind, count, act.count());
-            self.prims
-                .intersect_x8::<T>(kind, first, count, r, act, hit);
+            r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
             return true;
         }
+        let [o, _, inv] = r.rays();
         let mut t_hi = t_hi;
         let mut changed = false;
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
@@ -374,18 +488,20 @@ impl Bvh {
                 let j = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 steps.prims += 1;
-                let (m, t, u, v) = T::intersect_splat_x8(block_vertices(b, j), r, act, hit.t);
+                let (m, t, u, v) = r.triangle::<T>(b, j, act, P::hit_t(hit));
                 if m.none() {
                     continue;
                 }
                 // only lanes that pass the triangle's binary leaf box (module doc)
-                let m = block_leaf_box(b, j).intersect_x8(r, m, hit.t);
+                let m = block_leaf_box(b, j)
+                    .intersect_lanes(o, inv, m, P::hit_t(hit))
+                    .0;
                 if m.none() {
                     continue;
                 }
                 let code = prim_code(PrimKind::Triangle, b.first as usize + j);
-                self.prims.record_x8(hit, m, t, (u, v), code);
-                t_hi = hmax(hit.t, act).to_array()[0];
+                P::record(&self.prims, hit, m, t, (u, v), code);
+                t_hi = max_in(P::hit_t(hit), act);
                 changed = true;
             }
         }
@@ -405,19 +521,19 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Option<Mask8> {
         let w = &self.wide;
-        let act = active;
-        if w.nodes.is_empty() || act.none() {
+        if w.nodes.is_empty() || active.none() {
             return Some(Mask8::NONE);
         }
-        let fr = Frustum::new(r, act, octant, spread, w.diagonal)?;
+        let [o, d, inv] = r.rays();
+        let fr = Frustum::new(o, d, inv, active, octant, spread, w.diagonal)?;
         Some(with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_occlusion_x8::<T>(r, act, &fr, t_max, steps)
+            self.frustum_occlusion_x8::<T>(r, active, &fr, t_max, steps)
         ))
     }
 
-    /// The frustum walk of [`Bvh::occluded_x8_wide`] for lanes of direction signs `OCT`.
+    /// [`Bvh::frustum_occlusion`] of eight lanes, compiled once per octant.
     fn frustum_occlusion_x8<T: TriangleKernel, const OCT: u32>(
         &self,
         r: &RayPacket8,
@@ -426,8 +542,24 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
+        self.frustum_occlusion::<RayPacket8, T, OCT>(r, act, fr, t_max, steps)
+    }
+
+    /// The any-hit frustum walk of a packet (lanes `act`) of direction signs `OCT`, at
+    /// any width: the lanes blocked with 0 < t < t_max.
+    #[inline(always)]
+    pub(crate) fn frustum_occlusion<P: WidePacket, T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &P,
+        act: Mask<P>,
+        fr: &Frustum,
+        t_max: P::L,
+        steps: &mut Steps,
+    ) -> Mask<P> {
+        use simd::{LaneMask as _, Lanes as _};
         let w = &self.wide;
-        let t_hi = hmax(t_max, act).to_array()[0];
+        let t_hi = max_in(t_max, act);
+        let [o, _, inv] = r.rays();
         let mut left = act;
         let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
         stack.push(SlotRef::ROOT);
@@ -448,10 +580,9 @@ impl Bvh {
             let first = cur.child as usize;
             if kind != PrimKind::Triangle {
                 steps.leaf(kind, count, left.count());
-                left = left.and_not(
-                    self.prims
-                        .occluded_x8::<T>(kind, first, count, r, left, t_max),
-                );
+                let blocked =
+                    r.other_leaf_occluded::<T>(&self.prims, kind, first, count, left, t_max);
+                left = left.and_not(blocked);
             } else {
                 for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
                     let mut bits = fr.block_candidates::<OCT>(b, t_hi);
@@ -459,11 +590,11 @@ impl Bvh {
                         let j = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
                         steps.prims += 1;
-                        let (m, t, _, _) =
-                            T::intersect_splat_x8(block_vertices(b, j), r, left, t_max);
+                        let (m, t, _, _) = r.triangle::<T>(b, j, left, t_max);
                         let m = m & t.lt(t_max);
                         if m.any() {
-                            left = left.and_not(block_leaf_box(b, j).intersect_x8(r, m, t_max));
+                            let blocked = block_leaf_box(b, j).intersect_lanes(o, inv, m, t_max).0;
+                            left = left.and_not(blocked);
                         }
                     }
                 }

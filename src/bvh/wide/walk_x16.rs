@@ -1,0 +1,221 @@
+//! Sixteen rays through the 8-wide tree as one frustum: the walks of `walk_x8.rs` at
+//! sixteen lanes (`WidePacket` for [`RayPacket16`]), for the `avx512` kernels.
+//!
+//! Everything here is `#[inline(always)]` down to the 16-lane operations, and reached
+//! only from functions compiled with AVX-512 enabled and called once the CPU has been
+//! found to have it (`simd::Isa`): there each operation on [`F16`] is one AVX-512
+//! instruction. Node tests stay eight-wide (one per node for the whole packet);
+//! triangles are tested against sixteen lanes at once. Spheres and clipped quadrics,
+//! the floor and the unbounded quadrics, and packets whose lanes do not share their
+//! direction signs or spread too far for one frustum go through the 8-lane code, half
+//! by half. A lane gets what the 8-lane walks give it, bit for bit: the kernels are
+//! the same generic code (`tests/lanes.rs`).
+
+use super::walk_x8::{Frustum, Mask, WidePacket, finite_lanes, shared_octant};
+use super::{TriBlock, walk_x8};
+use crate::bvh::{Bvh, Steps};
+use crate::geometry::triangle::TriangleKernel;
+use crate::geometry::{PrimKind, PrimSet};
+use crate::math::packet::Mask8;
+use crate::simd::LaneMask;
+use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask};
+use crate::simd::w16::{F16, M16};
+
+impl WidePacket for RayPacket16 {
+    type L = F16;
+    type Hit = HitPacket16;
+    #[inline(always)]
+    fn rays(&self) -> [[F16; 3]; 3] {
+        [self.lanes.origin, self.lanes.dir, self.lanes.inv_dir]
+    }
+    #[inline(always)]
+    fn hit_t(hit: &HitPacket16) -> F16 {
+        hit.t
+    }
+    #[inline(always)]
+    fn triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        j: usize,
+        act: M16,
+        t_max: F16,
+    ) -> (M16, F16, F16, F16) {
+        T::intersect_splat_lanes(walk_x8::block_vertices(b, j), &self.lanes, act, t_max)
+    }
+    #[inline(always)]
+    fn record(prims: &PrimSet, hit: &mut HitPacket16, m: M16, t: F16, uv: (F16, F16), code: i32) {
+        prims.record_lanes(hit, m, t, uv, code);
+    }
+    #[inline(always)]
+    fn other_leaf<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        act: M16,
+        hit: &mut HitPacket16,
+    ) {
+        let mut h = hit.halves();
+        for (k, hk) in h.iter_mut().enumerate() {
+            let a = half_mask(act, k);
+            if a.any() {
+                prims.intersect_x8::<T>(kind, first, count, &self.halves[k], a, hk);
+            }
+        }
+        *hit = HitPacket16::from_halves(h);
+    }
+    #[inline(always)]
+    fn other_leaf_occluded<T: TriangleKernel>(
+        &self,
+        prims: &PrimSet,
+        kind: PrimKind,
+        first: usize,
+        count: usize,
+        left: M16,
+        t_max: F16,
+    ) -> M16 {
+        let t = halves_of(t_max);
+        let blocked = |k: usize| {
+            let a = half_mask(left, k);
+            if a.none() {
+                return Mask8::NONE;
+            }
+            prims.occluded_x8::<T>(kind, first, count, &self.halves[k], a, t[k])
+        };
+        cat_mask(blocked(0), blocked(1))
+    }
+}
+
+/// Lanes 0–7 and 8–15 of `v`.
+#[inline(always)]
+fn halves_of(v: F16) -> [wide::f32x8; 2] {
+    use crate::simd::Lanes as _;
+    let a = v.to_array();
+    let f = |h: usize| wide::f32x8::new(a[8 * h..8 * h + 8].try_into().expect("8 lanes"));
+    [f(0), f(1)]
+}
+
+/// The direction signs every active lane of both halves shares, or `None`.
+#[inline(always)]
+fn octant_of(r: &RayPacket16, act: [Mask8; 2]) -> Option<u32> {
+    let o = [0, 1].map(|k| {
+        if act[k].none() {
+            Some(None)
+        } else {
+            shared_octant(&r.halves[k], act[k]).map(Some)
+        }
+    });
+    match o {
+        [Some(Some(a)), Some(Some(b))] if a == b => Some(a),
+        [Some(Some(a)), Some(None)] | [Some(None), Some(Some(a))] => Some(a),
+        _ => None,
+    }
+}
+
+impl Bvh {
+    /// Closest hits of the lanes `active` of sixteen rays below `hit.t`: per lane what
+    /// [`Bvh::intersect_x8`] gives it. Call only from code compiled with AVX-512.
+    #[inline(always)]
+    pub fn intersect_x16<T: TriangleKernel>(
+        &self,
+        r: &RayPacket16,
+        active: M16,
+        hit: &mut HitPacket16,
+        steps: &mut Steps,
+    ) {
+        let spread = self.frustum_spread();
+        let half = [half_mask(active, 0), half_mask(active, 1)];
+        let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
+        let act = cat_mask(fin[0], fin[1]);
+        if spread >= 0.0
+            && !self.wide.nodes.is_empty()
+            && act.any()
+            && let Some(oct) = octant_of(r, fin)
+        {
+            let [o, d, inv] = r.rays();
+            if let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
+                with_const!(
+                    oct,
+                    [0, 1, 2, 3, 4, 5, 6, 7],
+                    self.frustum_walk_x16::<T>(r, act, &fr, hit, steps)
+                );
+                let mut h = hit.halves();
+                for (k, hk) in h.iter_mut().enumerate() {
+                    if half[k].any() {
+                        self.intersect_beside_x8::<T>(&r.halves[k], half[k], hk, steps);
+                    }
+                }
+                *hit = HitPacket16::from_halves(h);
+                return;
+            }
+        }
+        let mut h = hit.halves();
+        for (k, hk) in h.iter_mut().enumerate() {
+            self.intersect_x8::<T>(&r.halves[k], half[k], hk, steps);
+        }
+        *hit = HitPacket16::from_halves(h);
+    }
+
+    #[inline(always)]
+    fn frustum_walk_x16<T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &RayPacket16,
+        act: M16,
+        fr: &Frustum,
+        hit: &mut HitPacket16,
+        steps: &mut Steps,
+    ) {
+        self.frustum_walk::<RayPacket16, T, OCT>(r, act, fr, hit, steps);
+    }
+
+    /// The lanes of `active` blocked with 0 < t < t_max: per lane what
+    /// [`Bvh::occluded_x8`] gives it. Call only from code compiled with AVX-512.
+    #[inline(always)]
+    pub fn occluded_x16<T: TriangleKernel>(
+        &self,
+        r: &RayPacket16,
+        active: M16,
+        t_max: F16,
+        steps: &mut Steps,
+    ) -> M16 {
+        let spread = self.frustum_spread();
+        let t = halves_of(t_max);
+        let half = [half_mask(active, 0), half_mask(active, 1)];
+        if spread >= 0.0 && !self.wide.nodes.is_empty() {
+            let left =
+                [0, 1].map(|k| self.occluded_beside_x8::<T>(&r.halves[k], half[k], t[k], steps));
+            let fin = [0, 1].map(|k| left[k] & finite_lanes(&r.halves[k]));
+            let act = cat_mask(fin[0], fin[1]);
+            if act.none() {
+                return active.and_not(cat_mask(left[0], left[1]));
+            }
+            if let Some(oct) = octant_of(r, fin) {
+                let [o, d, inv] = r.rays();
+                if let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
+                    let blocked: Mask<RayPacket16> = with_const!(
+                        oct,
+                        [0, 1, 2, 3, 4, 5, 6, 7],
+                        self.frustum_occlusion_x16::<T>(r, act, &fr, t_max, steps)
+                    );
+                    return active.and_not(cat_mask(left[0], left[1])) | blocked;
+                }
+            }
+        }
+        let mut blocked = |k: usize| self.occluded_x8::<T>(&r.halves[k], half[k], t[k], steps);
+        let b0 = blocked(0);
+        cat_mask(b0, blocked(1))
+    }
+
+    #[inline(always)]
+    fn frustum_occlusion_x16<T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &RayPacket16,
+        act: M16,
+        fr: &Frustum,
+        t_max: F16,
+        steps: &mut Steps,
+    ) -> M16 {
+        self.frustum_occlusion::<RayPacket16, T, OCT>(r, act, fr, t_max, steps)
+    }
+}

@@ -1,0 +1,249 @@
+//! 16 lanes over AVX-512: [`F16`] (`__m512`), [`M16`] (a `__mmask16`) and [`I16`]
+//! (`__m512i`).
+//!
+//! Only the `avx512` kernels use them, entered through functions compiled with
+//! `#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]` (`Isa::Avx512`),
+//! with everything below `#[inline(always)]`, so that each method here becomes the one
+//! instruction it names. The operations are those of `wide::f32x8` lane for lane
+//! (the same comparison predicates, the same `min`/`max` operand order, negation by
+//! the sign bit), so a kernel gives the same bits per lane at both widths.
+
+#[cfg(target_arch = "x86_64")]
+pub use imp::{F16, I16, M16};
+
+#[cfg(target_arch = "x86_64")]
+mod imp {
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+    use crate::simd::{IntLanes, LaneMask, Lanes};
+
+    /// 16 f32 lanes. A value exists only in code reached through `Isa::Avx512`, which
+    /// is chosen only on a CPU with AVX-512 F, VL, BW and DQ (`Isa::detect`).
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub struct F16(__m512);
+
+    /// 16 i32 lanes (as [`F16`]).
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub struct I16(__m512i);
+
+    /// A mask of 16 lanes, bit i for lane i (a `__mmask16`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    #[repr(transparent)]
+    pub struct M16(pub u16);
+
+    // SAFETY (every `unsafe` block below): the intrinsics need AVX-512 F and DQ (the
+    // float xor/and/or) at run time, and `F16`/`I16` values exist only on CPUs that
+    // have them (see `F16`); the loads and stores read or write exactly the 64 bytes
+    // of an `[f32; 16]` or `[i32; 16]` owned by the caller, unaligned.
+
+    impl LaneMask for M16 {
+        const ALL: M16 = M16(u16::MAX);
+        const NONE: M16 = M16(0);
+        #[inline(always)]
+        fn from_bits(bits: u32) -> M16 {
+            M16(bits as u16)
+        }
+        #[inline(always)]
+        fn bits(self) -> u32 {
+            self.0 as u32
+        }
+        #[inline(always)]
+        fn and_not(self, o: M16) -> M16 {
+            M16(self.0 & !o.0)
+        }
+    }
+
+    impl BitAnd for M16 {
+        type Output = M16;
+        #[inline(always)]
+        fn bitand(self, o: M16) -> M16 {
+            M16(self.0 & o.0)
+        }
+    }
+    impl BitOr for M16 {
+        type Output = M16;
+        #[inline(always)]
+        fn bitor(self, o: M16) -> M16 {
+            M16(self.0 | o.0)
+        }
+    }
+    impl Not for M16 {
+        type Output = M16;
+        #[inline(always)]
+        fn not(self) -> M16 {
+            M16(!self.0)
+        }
+    }
+
+    impl IntLanes for I16 {
+        type Mask = M16;
+        type Array = [i32; 16];
+        #[inline(always)]
+        fn splat(v: i32) -> I16 {
+            unsafe { I16(_mm512_set1_epi32(v)) }
+        }
+        #[inline(always)]
+        fn from_array(a: [i32; 16]) -> I16 {
+            unsafe { I16(_mm512_loadu_si512(a.as_ptr().cast())) }
+        }
+        #[inline(always)]
+        fn to_array(self) -> [i32; 16] {
+            let mut a = [0i32; 16];
+            unsafe { _mm512_storeu_si512(a.as_mut_ptr().cast(), self.0) };
+            a
+        }
+        #[inline(always)]
+        fn select(m: M16, t: I16, f: I16) -> I16 {
+            unsafe { I16(_mm512_mask_blend_epi32(m.0, f.0, t.0)) }
+        }
+        #[inline(always)]
+        fn non_negative(self) -> M16 {
+            unsafe { M16(_mm512_cmpge_epi32_mask(self.0, _mm512_setzero_si512())) }
+        }
+        #[inline(always)]
+        fn eq(self, o: I16) -> M16 {
+            unsafe { M16(_mm512_cmpeq_epi32_mask(self.0, o.0)) }
+        }
+    }
+
+    macro_rules! binop {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl $tr for F16 {
+                type Output = F16;
+                #[inline(always)]
+                fn $f(self, o: F16) -> F16 {
+                    unsafe { F16($intr(self.0, o.0)) }
+                }
+            }
+        };
+    }
+    binop!(Add, add, _mm512_add_ps);
+    binop!(Sub, sub, _mm512_sub_ps);
+    binop!(Mul, mul, _mm512_mul_ps);
+    binop!(Div, div, _mm512_div_ps);
+
+    impl Neg for F16 {
+        type Output = F16;
+        #[inline(always)]
+        fn neg(self) -> F16 {
+            // the sign bit flipped, as wide's f32x8 (−(+0) = −0)
+            unsafe { F16(_mm512_xor_ps(self.0, _mm512_set1_ps(-0.0))) }
+        }
+    }
+
+    impl F16 {
+        #[inline(always)]
+        fn cmp<const P: i32>(self, o: F16) -> M16 {
+            unsafe { M16(_mm512_cmp_ps_mask::<P>(self.0, o.0)) }
+        }
+    }
+
+    impl Lanes for F16 {
+        const N: usize = 16;
+        type Mask = M16;
+        type Int = I16;
+        type Array = [f32; 16];
+
+        #[inline(always)]
+        fn splat(v: f32) -> F16 {
+            unsafe { F16(_mm512_set1_ps(v)) }
+        }
+        #[inline(always)]
+        fn from_array(a: [f32; 16]) -> F16 {
+            unsafe { F16(_mm512_loadu_ps(a.as_ptr())) }
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f32; 16] {
+            let mut a = [0f32; 16];
+            unsafe { _mm512_storeu_ps(a.as_mut_ptr(), self.0) };
+            a
+        }
+        #[inline(always)]
+        fn zero() -> F16 {
+            unsafe { F16(_mm512_setzero_ps()) }
+        }
+        #[inline(always)]
+        fn abs(self) -> F16 {
+            unsafe { F16(_mm512_andnot_ps(_mm512_set1_ps(-0.0), self.0)) }
+        }
+        #[inline(always)]
+        fn sqrt(self) -> F16 {
+            unsafe { F16(_mm512_sqrt_ps(self.0)) }
+        }
+        #[inline(always)]
+        fn fast_min(self, o: F16) -> F16 {
+            unsafe { F16(_mm512_min_ps(self.0, o.0)) }
+        }
+        #[inline(always)]
+        fn fast_max(self, o: F16) -> F16 {
+            unsafe { F16(_mm512_max_ps(self.0, o.0)) }
+        }
+        #[inline(always)]
+        fn min(self, o: F16) -> F16 {
+            // `o` NaN: `self` (wide's rule; the instruction alone gives `o`)
+            let nan = o.cmp::<_CMP_UNORD_Q>(o);
+            F16::select(nan, self, self.fast_min(o))
+        }
+        #[inline(always)]
+        fn max(self, o: F16) -> F16 {
+            let nan = o.cmp::<_CMP_UNORD_Q>(o);
+            F16::select(nan, self, self.fast_max(o))
+        }
+        #[inline(always)]
+        fn xor_sign(self, s: F16) -> F16 {
+            unsafe {
+                F16(_mm512_xor_ps(
+                    self.0,
+                    _mm512_and_ps(s.0, _mm512_set1_ps(-0.0)),
+                ))
+            }
+        }
+        #[inline(always)]
+        fn sign_bits(self) -> F16 {
+            unsafe { F16(_mm512_and_ps(self.0, _mm512_set1_ps(-0.0))) }
+        }
+        #[inline(always)]
+        fn bit_or(self, o: F16) -> F16 {
+            unsafe { F16(_mm512_or_ps(self.0, o.0)) }
+        }
+        #[inline(always)]
+        fn lt(self, o: F16) -> M16 {
+            self.cmp::<_CMP_LT_OQ>(o)
+        }
+        #[inline(always)]
+        fn le(self, o: F16) -> M16 {
+            self.cmp::<_CMP_LE_OQ>(o)
+        }
+        #[inline(always)]
+        fn gt(self, o: F16) -> M16 {
+            self.cmp::<_CMP_GT_OQ>(o)
+        }
+        #[inline(always)]
+        fn ge(self, o: F16) -> M16 {
+            self.cmp::<_CMP_GE_OQ>(o)
+        }
+        #[inline(always)]
+        fn eq(self, o: F16) -> M16 {
+            self.cmp::<_CMP_EQ_OQ>(o)
+        }
+        #[inline(always)]
+        fn sign_negative(self) -> M16 {
+            unsafe { M16(_mm512_movepi32_mask(_mm512_castps_si512(self.0))) }
+        }
+        #[inline(always)]
+        fn select(m: M16, t: F16, f: F16) -> F16 {
+            unsafe { F16(_mm512_mask_blend_ps(m.0, f.0, t.0)) }
+        }
+        #[inline(always)]
+        fn reduce_min(self) -> f32 {
+            unsafe { _mm512_reduce_min_ps(self.0) }
+        }
+        #[inline(always)]
+        fn reduce_max(self) -> f32 {
+            unsafe { _mm512_reduce_max_ps(self.0) }
+        }
+    }
+}
