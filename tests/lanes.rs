@@ -1,0 +1,163 @@
+//! The 16-lane packets (`avx512`) against the 8-lane ones, ray by ray: the same hit
+//! distance, bit for bit, and the same shadow answer, on a mesh and on a scene of
+//! every primitive kind (whose spheres, quadrics and floor the 16-lane walk hands to
+//! the 8-lane kernels half by half). On a CPU without AVX-512 the choice of
+//! instruction set is checked instead: `avx512` is refused and `auto` is `avx2`.
+
+mod common;
+
+use common::{Rng, generated_scene};
+use glam::{DVec3, Vec3};
+use octaray::bvh::bench::{
+    Mode, RaySet, incoherent_rays, primary_rays, shadow_rays, torus, trace, trace_occluded,
+};
+use octaray::bvh::{Bvh, Steps};
+use octaray::geometry::PrimSet;
+use octaray::simd::Isa;
+use octaray::simd::isa::IsaError;
+
+/// The 16-lane mode, where this CPU runs it.
+fn mode16() -> Option<Mode> {
+    Isa::avx512()
+        .and_then(|i| i.avx512_kernels())
+        .map(Mode::Packet16)
+}
+
+/// Traces `rays` at 8 and 16 lanes; asserts every ray's t is the same bits and every
+/// shadow ray the same answer; returns the node tests of both widths.
+fn same_per_ray(name: &str, bvh: &Bvh, rays: &RaySet, m16: Mode) -> (Steps, Steps) {
+    let n = rays.origin.len();
+    let (mut t8, mut t16) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let s8 = trace(bvh, rays, Mode::Packet8, &mut t8);
+    let s16 = trace(bvh, rays, m16, &mut t16);
+    let hits = t8.iter().filter(|t| **t >= 0.0).count();
+    assert!(
+        hits > n / 10,
+        "{name}: too few hits ({hits} of {n}) to compare"
+    );
+    for (i, (a, b)) in t8.iter().zip(&t16).enumerate() {
+        assert_eq!(
+            a.to_bits(),
+            b.to_bits(),
+            "{name}: ray {i}: t {a} (8 lanes) vs {b} (16)"
+        );
+    }
+    let set = shadow_rays(rays.clone(), t8);
+    let (mut b8, mut b16) = (vec![0u8; n], vec![0u8; n]);
+    trace_occluded(bvh, &set, Mode::Packet8, &mut b8);
+    trace_occluded(bvh, &set, m16, &mut b16);
+    let blocked = b8.iter().filter(|b| **b == 1).count();
+    assert!(
+        blocked > 0 && blocked < hits,
+        "{name}: shadow rays must go both ways"
+    );
+    for (i, (a, b)) in b8.iter().zip(&b16).enumerate() {
+        assert_eq!(a, b, "{name}: shadow ray {i}: {a} (8 lanes) vs {b} (16)");
+    }
+    (s8, s16)
+}
+
+#[test]
+fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
+    let Some(m16) = mode16() else {
+        assert_eq!(Isa::detect(), Isa::AVX2);
+        assert_eq!(Isa::parse("avx512"), Err(IsaError::Unsupported("avx512")));
+        return;
+    };
+    let bvh = Bvh::build(PrimSet::from_triangles(torus(120, 60)));
+    let (s8, s16) = same_per_ray("primary", &bvh, &primary_rays(512, 512), m16);
+    // the 16-lane frustum walk ran (not the halves): one node test serves 16 rays
+    assert!(
+        (s16.boxes as f64) < 0.75 * s8.boxes as f64,
+        "node tests: {} at 16 lanes vs {} at 8",
+        s16.boxes,
+        s8.boxes
+    );
+    // incoherent packets: the halves, lane by lane
+    same_per_ray("incoherent", &bvh, &incoherent_rays(1 << 14, 3), m16);
+}
+
+#[test]
+fn sixteen_lanes_give_every_ray_what_eight_give_it_on_every_primitive_kind() {
+    let Some(m16) = mode16() else {
+        assert_eq!(Isa::parse("auto"), Ok(Isa::AVX2));
+        return;
+    };
+    let scene = generated_scene(400, 5);
+    let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
+    let p = &bvh.prims;
+    assert!(!p.spheres.is_empty() && !p.quadrics.is_empty() && p.floor.is_some());
+    // coherent packets from a few eyes (a camera's 8 × 2 blocks), then scattered ones
+    let mut rng = Rng(9);
+    let (mut origin, mut dir) = (Vec::new(), Vec::new());
+    for _ in 0..6 {
+        let eye = Vec3::new(
+            rng.range(-60.0, 40.0) as f32,
+            rng.range(-60.0, 40.0) as f32,
+            rng.range(30.0, 60.0) as f32,
+        );
+        let centre = (rng.unit() * 0.3 - DVec3::Z).normalize();
+        let (right, up) = (
+            centre.cross(DVec3::Y).normalize(),
+            centre.cross(DVec3::Y).normalize().cross(centre),
+        );
+        for y in 0..64 {
+            for x in 0..64 {
+                // 0.5 mrad a pixel: a 8 × 2 block is one frustum
+                let (u, v) = ((x as f64 - 32.0) / 2048.0, (y as f64 - 32.0) / 2048.0);
+                origin.push(eye);
+                dir.push((centre + right * u + up * v).normalize().as_vec3());
+            }
+        }
+    }
+    for _ in 0..8192 {
+        origin.push(
+            rng.vec_in(DVec3::new(-80.0, -80.0, 0.0), DVec3::new(60.0, 60.0, 40.0))
+                .as_vec3(),
+        );
+        dir.push(rng.unit().as_vec3());
+    }
+    let rays = RaySet {
+        name: "mixed",
+        origin,
+        dir,
+    };
+    let (s8, s16) = same_per_ray("mixed", &bvh, &rays, m16);
+    assert!(
+        s16.boxes < s8.boxes,
+        "node tests: {} at 16 lanes vs {} at 8",
+        s16.boxes,
+        s8.boxes
+    );
+}
+
+#[test]
+fn the_instruction_set_is_parsed_and_refused_by_name() {
+    assert_eq!(Isa::parse("avx2"), Ok(Isa::AVX2));
+    assert_eq!(Isa::parse(" auto "), Ok(Isa::detect()));
+    assert_eq!(Isa::parse("avx512").ok(), Isa::avx512());
+    assert!(matches!(Isa::parse("sse9"), Err(IsaError::Unknown(s)) if s == "sse9"));
+    assert_eq!(Isa::AVX2.avx512_kernels(), None);
+    assert_eq!((Isa::AVX2.name(), Isa::AVX2.lanes()), ("avx2", 8));
+}
+
+#[test]
+fn a_bad_instruction_set_is_an_input_error_naming_its_source() {
+    let exe = env!("CARGO_BIN_EXE_octaray");
+    let run = |args: &[&str], env: Option<&str>| {
+        let mut c = std::process::Command::new(exe);
+        c.args(args).env_remove("OCTARAY_ISA");
+        if let Some(v) = env {
+            c.env("OCTARAY_ISA", v);
+        }
+        c.output().expect("octaray runs")
+    };
+    let out = run(&["bench-trace", "no-such.obj", "--isa", "sse9"], None);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--isa") && err.contains("sse9"), "{err}");
+    let out = run(&["bench-trace", "no-such.obj"], Some("neon"));
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("OCTARAY_ISA") && err.contains("neon"), "{err}");
+}
