@@ -1,15 +1,14 @@
 //! The instruction set of the fast path's hot kernels, chosen once per process.
 //!
-//! One binary holds the traversal and intersection kernels twice: compiled for the
-//! build's target (`avx2`: 8 lanes; x86-64-v3 by default) and compiled with AVX-512
-//! enabled (`avx512`: 16-lane packets over `__m512`, the 8-lane kernels with AVX-512's
-//! 32 registers and mask registers). The CPU is asked once (`is_x86_feature_detected!`);
+//! One binary holds the packet walks twice: at 8 lanes compiled for the build's target
+//! (`avx2`; x86-64-v3 by default) and at 16 lanes over `__m512` in functions compiled
+//! with AVX-512 enabled (`avx512`, which adds them; the 8-lane and single-ray code is
+//! the same under both). The CPU is asked once (`is_x86_feature_detected!`);
 //! `--isa auto|avx2|avx512` or `OCTARAY_ISA` force a choice, and `avx512` on a CPU
 //! without it is refused. An [`Isa`] value is the proof that its kernels can run: it
 //! is made only by [`Isa::detect`], [`Isa::parse`] and [`Isa::AVX2`].
 
 use std::fmt;
-use std::sync::OnceLock;
 
 /// The environment variable that forces a choice (`auto`, `avx2`, `avx512`).
 pub const ENV: &str = "OCTARAY_ISA";
@@ -19,7 +18,7 @@ pub const ENV: &str = "OCTARAY_ISA";
 pub enum IsaKind {
     /// 8 lanes, the build's own instructions.
     Avx2,
-    /// 16-lane packets and 8-lane kernels compiled with AVX-512 F, VL, BW and DQ.
+    /// Adds the 16-lane packets, compiled with AVX-512 F, VL, BW and DQ.
     Avx512,
 }
 
@@ -99,19 +98,6 @@ impl Isa {
         }
     }
 
-    /// The process's choice: the one [`Isa::set_process`] made, else [`ENV`]'s, else the
-    /// widest the CPU runs (an unusable [`ENV`] value is taken as `auto` here; the
-    /// command line refuses it first). Fixed at the first call.
-    pub fn process() -> Isa {
-        *PROCESS.get_or_init(|| Isa::from_env().ok().flatten().unwrap_or_else(Isa::detect))
-    }
-
-    /// Fixes the process's choice (the command line, before anything renders); false
-    /// when it was fixed already to another.
-    pub fn set_process(isa: Isa) -> bool {
-        *PROCESS.get_or_init(|| isa) == isa
-    }
-
     pub fn kind(self) -> IsaKind {
         self.0
     }
@@ -143,8 +129,6 @@ impl fmt::Display for Isa {
         f.write_str(self.name())
     }
 }
-
-static PROCESS: OnceLock<Isa> = OnceLock::new();
 
 #[cfg(test)]
 mod tests {

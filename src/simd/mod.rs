@@ -11,7 +11,8 @@
 //!
 //! Every operation is the IEEE operation of the scalar code, lane by lane, with no
 //! fused multiply-add: a kernel written over `L: Lanes` returns bit for bit the same
-//! per lane at 8 and 16 lanes (`tests/lanes.rs` checks it).
+//! per lane at 8 and 16 lanes (`tests/lanes.rs` checks the walks built on them ray by
+//! ray).
 
 pub mod isa;
 pub mod packet;
