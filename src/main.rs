@@ -236,6 +236,11 @@ struct RenderArgs {
     /// Leave outputs that exist alone (a requeued job resumes where it stopped).
     #[arg(long, requires = "output")]
     skip_existing: bool,
+    /// Instruction set of the packet kernels: auto (the widest this CPU runs), avx2
+    /// (8-lane packets) or avx512 (camera rays in 16-lane packets); the image is the
+    /// same under each. Default: the OCTARAY_ISA environment variable, else auto.
+    #[arg(long, value_name = "auto|avx2|avx512")]
+    isa: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -490,7 +495,8 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         threads: args.threads.map(|t| t as usize),
         progress: true,
     };
-    let profile = load_profile("--profile", &args.profile)?;
+    let mut profile = load_profile("--profile", &args.profile)?;
+    profile.packet.isa = chosen_isa(args.isa.as_deref())?;
     let rects = piece(args, size, profile.sampler().min_stripe_rows())?;
     warn_caustic_pairs(&scene, &profile);
     if rects.is_some() && !args.output.as_deref().is_some_and(is_png) {
@@ -514,9 +520,10 @@ fn run_render(args: &RenderArgs) -> Result<(), Failure> {
         }),
     }?;
     say!(
-        "{name}: {}, profile {}, {} threads: {} -> {}",
+        "{name}: {}, profile {}, isa {}, {} threads: {} -> {}",
         describe_piece(&settings, &frame.piece, args.tile),
         args.profile,
+        profile.packet.isa,
         threads_used(args.threads),
         frame.summary(start.elapsed().as_secs_f64()),
         written.display()
@@ -692,7 +699,8 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
     check_output(&pattern.name(first), true)
         .map_err(|e| Failure::input(format!("--output: {e}")))?;
     let (scene, name, size) = load_sized(args)?;
-    let profile = load_profile("--profile", &args.profile)?;
+    let mut profile = load_profile("--profile", &args.profile)?;
+    profile.packet.isa = chosen_isa(args.isa.as_deref())?;
     for k in first..=last {
         let out = pattern.name(k);
         if args.skip_existing && exists(&out) {
@@ -716,12 +724,13 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
         let start = std::time::Instant::now();
         write_frame(&frame.piece, &out, &scene, &profile, &settings, None)?;
         say!(
-            "{name}: frame {k} ({}:{}), {}x{}, profile {}, {} threads: {} -> {}",
+            "{name}: frame {k} ({}:{}), {}x{}, profile {}, isa {}, {} threads: {} -> {}",
             path_file.display(),
             camera.line,
             size.width,
             size.height,
             args.profile,
+            profile.packet.isa,
             threads_used(args.threads),
             frame.summary(start.elapsed().as_secs_f64()),
             out.display()
@@ -907,17 +916,21 @@ fn main() -> ExitCode {
         Some(Command::BenchTrace(a)) => Some(a.threads),
         _ => None,
     };
-    let result = start(threads).and_then(|()| match cli.command {
-        Some(Command::Render(args)) => run_render(&args),
-        Some(Command::Assemble(args)) => run_assemble(&args),
-        Some(Command::BenchTrace(args)) => run_bench_trace(&args),
-        Some(Command::View(args)) => run_view(&args),
-        Some(Command::Tradeoff(args)) => run_tradeoff(&args),
-        None => run_render(&RenderArgs {
-            profile: Profile::default_name().into(),
-            ..RenderArgs::default()
-        }),
-    });
+    // an unusable OCTARAY_ISA is refused before anything reads it
+    let isa_env = chosen_isa(None).map(|_| ());
+    let result = isa_env
+        .and_then(|()| start(threads))
+        .and_then(|()| match cli.command {
+            Some(Command::Render(args)) => run_render(&args),
+            Some(Command::Assemble(args)) => run_assemble(&args),
+            Some(Command::BenchTrace(args)) => run_bench_trace(&args),
+            Some(Command::View(args)) => run_view(&args),
+            Some(Command::Tradeoff(args)) => run_tradeoff(&args),
+            None => run_render(&RenderArgs {
+                profile: Profile::default_name().into(),
+                ..RenderArgs::default()
+            }),
+        });
     if result.is_ok() && threads != Some(1) && octaray::parallel::serial() {
         say!(
             "octaray: warning: worker threads could not start (a process limit?); ran on one thread"

@@ -161,3 +161,88 @@ fn a_bad_instruction_set_is_an_input_error_naming_its_source() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("OCTARAY_ISA") && err.contains("neon"), "{err}");
 }
+
+/// Every built-in packet profile renders the same bytes under `avx2` and `avx512` (the
+/// camera rays of two blocks as one 16-lane packet), on a scene of every kind large
+/// enough for the frustum walk, whole and in a crop, and on a mesh close up.
+#[test]
+fn the_image_is_the_same_under_every_instruction_set() {
+    use octaray::render::profile::Profile;
+    use octaray::render::{PixelRect, RenderSettings};
+    use octaray::scene::Camera;
+    let Some(avx512) = Isa::avx512() else {
+        assert_eq!(Isa::detect(), Isa::AVX2);
+        return;
+    };
+    let mixed = generated_scene(400, 5);
+    let torus = {
+        let mut s = generated_scene(1, 1);
+        let mut mesh = octaray::scene::obj::Mesh {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+        };
+        for t in torus(64, 32) {
+            let k = mesh.vertices.len() as u32;
+            mesh.vertices
+                .extend(t.v.map(|p| p.as_dvec3() * 10.0 + DVec3::new(0.0, 0.0, 15.0)));
+            mesh.triangles.push([k, k + 1, k + 2]);
+        }
+        s.objects[0].shape = octaray::scene::Shape::Mesh(std::sync::Arc::new(mesh));
+        s
+    };
+    // narrow views: a block of 8 × 2 pixels spans less than the frustum walk's limit
+    let look = |eye: DVec3, at: DVec3| Camera::look_at(eye, at, DVec3::Z, 6.0).expect("a camera");
+    let cameras = [
+        (
+            &mixed,
+            look(
+                DVec3::new(100.0, 100.0, 50.0),
+                DVec3::new(-10.0, -10.0, 10.0),
+            ),
+        ),
+        (
+            &torus,
+            look(DVec3::new(0.0, -40.0, 30.0), DVec3::new(10.0, 0.0, 15.0)),
+        ),
+    ];
+    for name in ["fast", "preview", "quality"] {
+        let profile = Profile::by_name(name).expect("built in");
+        for (scene, camera) in &cameras {
+            let mut settings = RenderSettings::square(96);
+            settings.camera = *camera;
+            let image = |isa: Isa, crop: Option<PixelRect>| {
+                let mut p = profile.clone();
+                p.packet.isa = isa;
+                let settings = RenderSettings { crop, ..settings };
+                let r = p.prepare(scene, camera.eye).render(&settings);
+                (r.image.pixels, r.stats.node_tests)
+            };
+            for crop in [
+                None,
+                Some(PixelRect {
+                    x0: 5,
+                    x1: 61,
+                    y0: 50,
+                    y1: 90,
+                }),
+            ] {
+                let ((a, n8), (b, n16)) = (image(Isa::AVX2, crop), image(avx512, crop));
+                // the 16-lane frustum walk ran: one node test for two blocks' rays
+                // (`preview` renders at half the size: its blocks spread past the limit)
+                let fewer = n16 < n8 || (name == "preview" && n16 == n8);
+                assert!(fewer, "{name}: node tests {n16} (avx512) vs {n8} (avx2)");
+                assert!(
+                    a == b,
+                    "{name}: the images differ under avx2 and avx512 ({crop:?})"
+                );
+                let lit = a.iter().filter(|p| p.iter().any(|c| *c > 0)).count();
+                assert!(
+                    lit > a.len() / 4,
+                    "{name}: too dark to compare ({lit} lit pixels of {}, eye {})",
+                    a.len(),
+                    camera.eye
+                );
+            }
+        }
+    }
+}

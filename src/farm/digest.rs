@@ -270,6 +270,8 @@ fn profile_knobs(profile: &Profile) -> String {
             ray_offset,
             single_ray_lanes,
             triangle_test,
+            // not part of the image: 16-lane packets give every ray the 8-lane hit
+            isa: _,
         } = packet;
         out += &format!(
             ", shadow_any_hit {shadow_any_hit}, ray_offset {ray_offset:?}, \

@@ -167,6 +167,20 @@ pub trait SampleTracer: Sync {
         scratch: &mut Self::Scratch,
         stats: &mut RenderStats,
     ) -> Self::Colors;
+
+    /// Traces two blocks, the second after the first in the frame loop's order (the
+    /// next 4 × 2 block of the row, or the first of the next row): as two
+    /// [`SampleTracer::trace_block`]s, unless a tracer does both at once.
+    fn trace_pair(
+        &self,
+        samples: &Samples,
+        blocks: [SampleBlock; 2],
+        scratch: &mut Self::Scratch,
+        stats: &mut RenderStats,
+    ) -> [Self::Colors; 2] {
+        let first = self.trace_block(samples, blocks[0], scratch, stats);
+        [first, self.trace_block(samples, blocks[1], scratch, stats)]
+    }
 }
 
 /// The colours of a block of eight samples, each channel in [0, 1].
@@ -329,6 +343,36 @@ fn for_each_block(
     }
 }
 
+/// Traces the 4 × 2 blocks covering a `width` × `rows` grid whose top-left sample is
+/// (x0, y0), in [`for_each_block`]'s order, two at a time ([`SampleTracer::trace_pair`]),
+/// and hands `f` each block's place, the block and its colours.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn for_each_traced<T: SampleTracer>(
+    tracer: &T,
+    samples: &Samples,
+    (x0, y0): (u32, u32),
+    width: usize,
+    rows: usize,
+    scratch: &mut T::Scratch,
+    stats: &mut RenderStats,
+    mut f: impl FnMut(usize, usize, SampleBlock, &T::Colors),
+) {
+    let mut pending: Option<(usize, usize, SampleBlock)> = None;
+    for_each_block(x0, y0, width, rows, |x, y, block| match pending.take() {
+        None => pending = Some((x, y, block)),
+        Some((px, py, first)) => {
+            let [a, b] = tracer.trace_pair(samples, [first, block], scratch, stats);
+            f(px, py, first, &a);
+            f(x, y, block, &b);
+        }
+    });
+    if let Some((x, y, block)) = pending {
+        let c = tracer.trace_block(samples, block, scratch, stats);
+        f(x, y, block, &c);
+    }
+}
+
 /// Renders the pixels `rect` of the frame whose samples are `samples` into `out` (the
 /// rectangle's pixels, row-major), and returns the frame's counters.
 pub fn render_rect<T: SampleTracer, P: PixelOut>(
@@ -379,20 +423,29 @@ fn render_band<T: SampleTracer, P: PixelOut>(
     let rows = pixels.len() / width;
     let n = samples.n as usize;
     if n == 1 {
-        for_each_block(x0, y0, width, rows, |px, py, block| {
-            let c = tracer.trace_block(samples, block, &mut scratch, &mut stats);
-            let p = P::block(&c);
-            if block.bits == 0xff {
-                for row in 0..2 {
-                    let at = (py + row) * width + px;
-                    pixels[at..at + 4].copy_from_slice(&p[4 * row..4 * row + 4]);
+        let (scratch, st) = (&mut scratch, &mut stats);
+        for_each_traced(
+            tracer,
+            samples,
+            (x0, y0),
+            width,
+            rows,
+            scratch,
+            st,
+            |px, py, block, c| {
+                let p = P::block(c);
+                if block.bits == 0xff {
+                    for row in 0..2 {
+                        let at = (py + row) * width + px;
+                        pixels[at..at + 4].copy_from_slice(&p[4 * row..4 * row + 4]);
+                    }
+                } else {
+                    for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
+                        pixels[(py + lane / 4) * width + px + lane % 4] = p[lane];
+                    }
                 }
-            } else {
-                for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
-                    pixels[(py + lane / 4) * width + px + lane % 4] = p[lane];
-                }
-            }
-        });
+            },
+        );
         stats.primary_rays += pixels.len() as u64;
         return stats;
     }
@@ -439,12 +492,20 @@ fn trace_samples<T: SampleTracer>(
     stats: &mut RenderStats,
 ) {
     let sh = out.len() / sw;
-    for_each_block(sx0, sy0, sw, sh, |sx, sy, block| {
-        let c = tracer.trace_block(samples, block, scratch, stats);
-        for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
-            out[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
-        }
-    });
+    for_each_traced(
+        tracer,
+        samples,
+        (sx0, sy0),
+        sw,
+        sh,
+        scratch,
+        stats,
+        |sx, sy, block, c| {
+            for lane in (0..8).filter(|l| block.bits >> l & 1 == 1) {
+                out[(sy + lane / 4) * sw + sx + lane % 4] = c.lane(lane);
+            }
+        },
+    );
     stats.primary_rays += out.len() as u64;
 }
 

@@ -2,6 +2,7 @@
 //! built from (profile knobs `shadow_any_hit`, `ray_offset`, `single_ray_lanes`,
 //! `triangle_test`).
 
+use crate::simd::Isa;
 use serde::Deserialize;
 
 /// The packet path's ray/triangle test.
@@ -40,15 +41,20 @@ pub struct PacketOptions {
     pub single_ray_lanes: u32,
     /// The ray/triangle test.
     pub triangle_test: TriangleTest,
+    /// The kernels' instruction set: under `avx512` the camera rays of two sample
+    /// blocks are traced as one 16-lane packet (the same hits, bit for bit).
+    pub isa: Isa,
 }
 
 impl Default for PacketOptions {
+    /// The defaults, with the process's instruction set ([`Isa::process`]).
     fn default() -> Self {
         PacketOptions {
             shadow_any_hit: true,
             ray_offset: RayOffset::ErrorBound,
             single_ray_lanes: FALLBACK_LANES,
             triangle_test: TriangleTest::Watertight,
+            isa: Isa::process(),
         }
     }
 }

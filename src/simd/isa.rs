@@ -98,6 +98,13 @@ impl Isa {
         }
     }
 
+    /// The process's choice: [`ENV`]'s when it is set and usable, else the widest the
+    /// CPU runs (the command line refuses an unusable [`ENV`] before anything reads
+    /// this, and passes `--isa` explicitly).
+    pub fn process() -> Isa {
+        Isa::from_env().ok().flatten().unwrap_or_else(Isa::detect)
+    }
+
     pub fn kind(self) -> IsaKind {
         self.0
     }

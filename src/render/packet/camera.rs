@@ -6,12 +6,17 @@ use wide::f32x8;
 use super::chain::Chain;
 use super::path::PathState;
 use super::{Settings, Tracer};
+use crate::bvh::Bvh;
 use crate::bvh::Steps;
-use crate::math::packet::{Mask8, RayPacket8, Vec3x8};
+use crate::geometry::triangle::TriangleKernel;
+use crate::math::packet::{HitPacket8, Mask8, RayPacket8, Vec3x8};
 use crate::output::framebuffer::quantize;
 use crate::render::RenderStats;
 use crate::render::frame::{SampleBlock, SampleColors, SampleTracer, Samples};
 use crate::scene::camera::PixelGrid;
+use crate::simd::isa::Avx512;
+#[cfg(target_arch = "x86_64")]
+use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask};
 
 /// The camera rays of a sample grid in the renderer's f32 frame.
 pub(crate) struct CameraPackets {
@@ -112,12 +117,103 @@ impl<S: Settings> SampleTracer for Tracer<'_, S> {
         let camera =
             (scratch.camera).get_or_insert_with(|| CameraPackets::new(&samples.grid, self.base));
         let ray = camera.packet(block, samples);
+        self.shade_block(samples, block, &ray, None, scratch, stats)
+    }
+
+    /// Under `avx512`, the camera rays of both blocks as one 16-lane packet (each ray
+    /// gets the hit the 8-lane packet gives it: the same image), then each block's
+    /// path on its own.
+    #[inline]
+    fn trace_pair(
+        &self,
+        samples: &Samples,
+        blocks: [SampleBlock; 2],
+        scratch: &mut Scratch,
+        stats: &mut RenderStats,
+    ) -> [PacketColors; 2] {
+        let Some(token) = self.x16 else {
+            let first = self.trace_block(samples, blocks[0], scratch, stats);
+            return [first, self.trace_block(samples, blocks[1], scratch, stats)];
+        };
+        let camera =
+            (scratch.camera).get_or_insert_with(|| CameraPackets::new(&samples.grid, self.base));
+        let rays = blocks.map(|b| camera.packet(b, samples));
+        let active = blocks.map(|b| Mask8::from_bits(b.bits));
+        let mut steps = Steps::default();
+        let hits = closest_x16::<S::Tri>(token, &self.bvh, &rays, active, &mut steps);
+        stats.node_tests += steps.boxes;
+        stats.quadric_tests += steps.quadrics;
+        let first = self.shade_block(samples, blocks[0], &rays[0], Some(hits[0]), scratch, stats);
+        let second = self.shade_block(samples, blocks[1], &rays[1], Some(hits[1]), scratch, stats);
+        [first, second]
+    }
+}
+
+impl<S: Settings> Tracer<'_, S> {
+    /// The colours of a block's camera packet `ray` (`hit`: its closest hits, if found).
+    #[inline]
+    fn shade_block(
+        &self,
+        samples: &Samples,
+        block: SampleBlock,
+        ray: &RayPacket8,
+        hit: Option<HitPacket8>,
+        scratch: &mut Scratch,
+        stats: &mut RenderStats,
+    ) -> PacketColors {
         let active = Mask8::from_bits(block.bits);
         let path = PathState::camera([block.x, block.y], Some(*samples));
         let mut steps = Steps::default();
-        let c = self.trace_path(&ray, active, &path, &mut scratch.chain, stats, &mut steps);
+        let c = self.trace_path(
+            ray,
+            active,
+            hit,
+            &path,
+            &mut scratch.chain,
+            stats,
+            &mut steps,
+        );
         stats.quadric_tests += steps.quadrics;
         stats.node_tests += steps.boxes;
         PacketColors(c)
     }
+}
+
+/// The closest hits of two 8-ray packets traced as one of 16 lanes
+/// ([`Bvh::intersect_x16`]).
+#[inline]
+fn closest_x16<T: TriangleKernel>(
+    token: Avx512,
+    bvh: &Bvh,
+    rays: &[RayPacket8; 2],
+    active: [Mask8; 2],
+    steps: &mut Steps,
+) -> [HitPacket8; 2] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let _ = token;
+        // SAFETY: `token` proves this CPU has the features `x16` is compiled with
+        unsafe { x16::<T>(bvh, rays, active, steps) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (token, bvh, rays, active, steps);
+        unreachable!("no AVX-512 outside x86-64")
+    }
+}
+
+/// [`closest_x16`], compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
+fn x16<T: TriangleKernel>(
+    bvh: &Bvh,
+    rays: &[RayPacket8; 2],
+    active: [Mask8; 2],
+    steps: &mut Steps,
+) -> [HitPacket8; 2] {
+    let p = RayPacket16::new(*rays);
+    let inf = HitPacket8::new(f32x8::splat(f32::INFINITY));
+    let mut hit = HitPacket16::from_halves([inf, inf]);
+    bvh.intersect_x16::<T>(&p, cat_mask(active[0], active[1]), &mut hit, steps);
+    hit.halves()
 }

@@ -299,7 +299,7 @@ impl<S: Settings> Tracer<'_, S> {
             static CHAINS: std::cell::RefCell<Vec<Chain>> = const { std::cell::RefCell::new(Vec::new()) };
         }
         let mut chain = CHAINS.with(|c| c.borrow_mut().pop()).unwrap_or_default();
-        let c = self.trace_path(packet, active, path, &mut chain, stats, steps);
+        let c = self.trace_path(packet, active, None, path, &mut chain, stats, steps);
         CHAINS.with(|c| c.borrow_mut().push(chain));
         c
     }

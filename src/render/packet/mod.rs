@@ -25,6 +25,8 @@ mod lights;
 mod path;
 mod shade;
 
+use crate::bvh::wide::walk_x8::WIDE_PACKET_MIN_NODES;
+use crate::simd::isa::Avx512;
 use std::marker::PhantomData;
 use std::ops::Deref;
 
@@ -209,11 +211,14 @@ impl PacketRenderer {
         job: J,
     ) -> J::Out {
         let r = self;
+        // (trees too small for the frustum walk would only pay for the pairing)
+        let x16 = (self.options.isa.avx512_kernels())
+            .filter(|_| self.bvh.wide.nodes.len() >= WIDE_PACKET_MIN_NODES);
         match (self.options.shadow_any_hit, self.has_glass()) {
-            (true, false) => job.run(Tracer::<Fixed<true, false, O, T>> { r, offset }),
-            (false, false) => job.run(Tracer::<Fixed<false, false, O, T>> { r, offset }),
-            (true, true) => job.run(Tracer::<Fixed<true, true, O, T>> { r, offset }),
-            (false, true) => job.run(Tracer::<Fixed<false, true, O, T>> { r, offset }),
+            (true, false) => job.run(Tracer::<Fixed<true, false, O, T>> { r, offset, x16 }),
+            (false, false) => job.run(Tracer::<Fixed<false, false, O, T>> { r, offset, x16 }),
+            (true, true) => job.run(Tracer::<Fixed<true, true, O, T>> { r, offset, x16 }),
+            (false, true) => job.run(Tracer::<Fixed<false, true, O, T>> { r, offset, x16 }),
         }
     }
 
@@ -310,6 +315,8 @@ impl Offset for Epsilon {
 pub(crate) struct Tracer<'r, S: Settings> {
     r: &'r PacketRenderer,
     offset: S::Offset,
+    /// Under `avx512`: camera blocks are traced in pairs, one 16-lane packet.
+    x16: Option<Avx512>,
 }
 
 impl<S: Settings> Deref for Tracer<'_, S> {

@@ -104,10 +104,14 @@ impl<S: Settings> Tracer<'_, S> {
     /// glass lane's heavier branch goes on in the loop (an RGB lane's reflection,
     /// weighted per channel; a monochromatic lane's heavier ray) and [`glass`] traces the
     /// others one level deeper, nested.
+    /// `first`: the packet's closest hits when they were found already (camera packets
+    /// traced two at a time).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn trace_path(
         &self,
         camera: &RayPacket8,
         active: Mask8,
+        mut first: Option<HitPacket8>,
         path: &PathState,
         chain: &mut Chain,
         stats: &mut RenderStats,
@@ -122,7 +126,10 @@ impl<S: Settings> Tracer<'_, S> {
         let mut level = path.level;
         let mut weight = path.weight;
         loop {
-            let hit = self.closest(ray, active, steps);
+            let hit = match first.take() {
+                Some(hit) => hit,
+                None => self.closest(ray, active, steps),
+            };
             let lanes = active & hit.hit_mask();
             if lanes.none() {
                 break;
