@@ -18,7 +18,7 @@ use super::wide::walk_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, 
 use super::{Bvh, STACK_SIZE, Steps};
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{Hit1, PrimKind};
-use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, RayPacket8};
+use crate::math::packet::{FAR_WIDEN, HitPacket8, Mask8, Ray1, RayPacket8};
 
 /// A packet slab test: lanes of `active` meeting the box below `t_max`, entry distances.
 trait BoxTest {
@@ -181,17 +181,31 @@ impl Bvh {
     ) {
         let (mut t, mut prim) = (hit.t.to_array(), hit.prim.to_array());
         let (mut u, mut v) = (hit.u.to_array(), hit.v.to_array());
-        let mut bits = active.bits();
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let mut h = Hit1 {
+        // the active lanes' walks of the wide tree stepped in turn, then each lane's
+        // unbounded quadrics and floor: `intersect_1`'s order per lane
+        if active.none() {
+            return;
+        }
+        let mut lanes = [0usize; 8];
+        let mut n = 0;
+        for l in (0..8).filter(|&l| active.lane(l)) {
+            lanes[n] = l;
+            n += 1;
+        }
+        let mut rays = [r.ray(lanes[0]); 8];
+        let mut hits = [Hit1::new(0.0); 8];
+        for (k, &l) in lanes[..n].iter().enumerate() {
+            rays[k] = r.ray(l);
+            hits[k] = Hit1 {
                 t: t[l],
                 prim: prim[l],
                 u: u[l],
                 v: v[l],
             };
-            self.intersect_1::<T>(&r.ray(l), &mut h, steps);
+        }
+        self.intersect_wide_interleaved::<T>(&rays[..n], &mut hits[..n], steps);
+        for ((&l, ray), h) in lanes[..n].iter().zip(&rays).zip(&mut hits) {
+            self.intersect_beside_1::<T>(ray, h, steps);
             (t[l], prim[l], u[l], v[l]) = (h.t, h.prim, h.u, h.v);
         }
         *hit = HitPacket8 {
@@ -389,13 +403,25 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         let tm = t_max.to_array();
+        // each lane's floor and unbounded quadrics first (`occluded_1`'s order), then
+        // the walks of the lanes left, stepped in turn
         let mut blocked = 0;
-        let mut bits = active.bits();
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            if self.occluded_1::<T>(&r.ray(l), tm[l], steps) {
+        let mut lanes = [0usize; 8];
+        let mut n = 0;
+        for l in (0..8).filter(|&l| active.lane(l)) {
+            if self.occluded_beside_1::<T>(&r.ray(l), tm[l], steps) {
                 blocked |= 1 << l;
+            } else {
+                lanes[n] = l;
+                n += 1;
+            }
+        }
+        if n > 0 {
+            let rays: [Ray1; 8] = std::array::from_fn(|k| r.ray(lanes[k.min(n - 1)]));
+            let t: [f32; 8] = std::array::from_fn(|k| tm[lanes[k.min(n - 1)]]);
+            let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
+            for (k, &l) in lanes[..n].iter().enumerate() {
+                blocked |= (wide >> k & 1) << l;
             }
         }
         Mask8::from_bits(blocked)

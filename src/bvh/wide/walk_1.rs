@@ -31,6 +31,13 @@ impl<T: TriangleKernel> WideRay<'_, T> {
     }
 }
 
+/// One ray's walk in progress (what `walk_1` keeps in locals), for walks stepped in
+/// turn.
+struct Walk<'a, T: TriangleKernel> {
+    wr: WideRay<'a, T>,
+    cur: SlotRef,
+}
+
 /// One ray prepared for the slab tests of a [`WideNode`].
 struct BoxRay {
     origin: [f32x8; 3],
@@ -149,6 +156,101 @@ impl Bvh {
         }
     }
 
+    /// The tree part of [`Bvh::intersect_1`] for up to eight rays at once: each ray's
+    /// walk of [`Bvh::walk_1`] on its own, stepped in turn, one node or leaf each, so
+    /// that one ray's node and triangle fetches are in flight while the others compute
+    /// (a single walk waits on each fetch: every next node's address is in the one
+    /// before). Each ray gets exactly its own walk's hit.
+    pub(crate) fn intersect_wide_interleaved<T: TriangleKernel>(
+        &self,
+        rays: &[Ray1],
+        hits: &mut [Hit1],
+        steps: &mut Steps,
+    ) {
+        const N: usize = 8;
+        assert!(rays.len() <= N && rays.len() == hits.len(), "up to 8 rays");
+        if self.wide.nodes.is_empty() {
+            return;
+        }
+        let mut walks: [Option<Walk<T>>; N] = [const { None }; N];
+        // beside the walks, never moved, each its own local: kilobytes left
+        // uninitialised (an array of them was written out with zeros)
+        let (mut s0, mut s1, mut s2, mut s3) =
+            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+        let (mut s4, mut s5, mut s6, mut s7) =
+            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+        let stacks: [&mut Stack<Pending, WIDE_STACK>; N] = [
+            &mut s0, &mut s1, &mut s2, &mut s3, &mut s4, &mut s5, &mut s6, &mut s7,
+        ];
+        let mut live = 0u32;
+        for (k, r) in rays.iter().enumerate() {
+            if finite(r) {
+                walks[k] = Some(Walk {
+                    wr: WideRay::new(r),
+                    cur: SlotRef::ROOT,
+                });
+                live |= 1 << k;
+            }
+        }
+        while live != 0 {
+            let mut bits = live;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let walk = walks[k].as_mut().expect("a live walk");
+                if !self.step_1(walk, stacks[k], &mut hits[k], steps) {
+                    live &= !(1 << k);
+                }
+            }
+        }
+    }
+
+    /// One step of a ray's walk (`walk_1`'s loop body): the node or leaf at `w.cur`,
+    /// then the next subtree still in front of the nearest hit; false when none is left.
+    #[inline(always)]
+    fn step_1<T: TriangleKernel>(
+        &self,
+        w: &mut Walk<T>,
+        stack: &mut Stack<Pending, WIDE_STACK>,
+        hit: &mut Hit1,
+        steps: &mut Steps,
+    ) -> bool {
+        let wide = &self.wide;
+        if w.cur.slot.is_interior() {
+            let node = &wide.nodes[w.cur.child as usize];
+            steps.boxes += 1;
+            let (m, near) = w.wr.boxes.test(&node.bounds, hit.t);
+            let mut bits = m.bits();
+            wide.prefetch_children(node, bits, false);
+            if bits != 0 {
+                let first = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                w.cur = if bits == 0 {
+                    node.get(first)
+                } else {
+                    WideBvh::push_ordered(node, near, first, bits, stack)
+                };
+                return true;
+            }
+        } else {
+            let (cur, wr) = (w.cur, &w.wr);
+            with_const!(
+                wr.r.kz,
+                [0, 1, 2],
+                self.leaf_intersect_1::<T>(cur, wr, hit, steps)
+            );
+        }
+        loop {
+            let Some(p) = stack.pop() else {
+                return false;
+            };
+            if p.near <= hit.t {
+                w.cur = p.to;
+                return true;
+            }
+        }
+    }
+
     #[inline]
     fn leaf_intersect_1<T: TriangleKernel, const KZ: usize>(
         &self,
@@ -241,6 +343,92 @@ impl Bvh {
             }
         }
         false
+    }
+
+    /// The tree part of [`Bvh::occluded_1`] for up to eight rays at once (bit k of the
+    /// answer: ray k is blocked before `t_max[k]`), their walks stepped in turn as in
+    /// [`Bvh::intersect_wide_interleaved`]; each ray gets its own walk's answer.
+    pub(crate) fn occluded_wide_interleaved<T: TriangleKernel>(
+        &self,
+        rays: &[Ray1],
+        t_max: &[f32],
+        steps: &mut Steps,
+    ) -> u32 {
+        const N: usize = 8;
+        assert!(rays.len() <= N && rays.len() == t_max.len(), "up to 8 rays");
+        if self.wide.nodes.is_empty() {
+            return 0;
+        }
+        let mut walks: [Option<WideRay<T>>; N] = [const { None }; N];
+        // each its own local, as in `intersect_wide_interleaved`
+        let (mut s0, mut s1, mut s2, mut s3) =
+            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+        let (mut s4, mut s5, mut s6, mut s7) =
+            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+        let stacks: [&mut Stack<u32, WIDE_STACK>; N] = [
+            &mut s0, &mut s1, &mut s2, &mut s3, &mut s4, &mut s5, &mut s6, &mut s7,
+        ];
+        let mut live = 0u32;
+        for (k, r) in rays.iter().enumerate() {
+            if finite(r) {
+                walks[k] = Some(WideRay::new(r));
+                stacks[k].push(0);
+                live |= 1 << k;
+            }
+        }
+        let mut blocked = 0;
+        while live != 0 {
+            let mut bits = live;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let wr = walks[k].as_ref().expect("a live walk");
+                match self.occluded_step_1(wr, stacks[k], t_max[k], steps) {
+                    Some(true) => {
+                        blocked |= 1 << k;
+                        live &= !(1 << k);
+                    }
+                    Some(false) => live &= !(1 << k),
+                    None => {}
+                }
+            }
+        }
+        blocked
+    }
+
+    /// One step of `occluded_walk_1`: the node on top of `stack`, its leaves tested at
+    /// once and its inner children pushed. `Some(answer)` when the walk has ended.
+    #[inline(always)]
+    fn occluded_step_1<T: TriangleKernel>(
+        &self,
+        wr: &WideRay<T>,
+        stack: &mut Stack<u32, WIDE_STACK>,
+        t_max: f32,
+        steps: &mut Steps,
+    ) -> Option<bool> {
+        let w = &self.wide;
+        let Some(ni) = stack.pop() else {
+            return Some(false);
+        };
+        let node: &WideNode = &w.nodes[ni as usize];
+        steps.boxes += 1;
+        let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
+        w.prefetch_children(node, bits, false);
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let child = node.get(s);
+            if child.slot.is_interior() {
+                stack.push(child.child);
+            } else if with_const!(
+                wr.r.kz,
+                [0, 1, 2],
+                self.leaf_occluded_1::<T>(child, wr, t_max, steps)
+            ) {
+                return Some(true);
+            }
+        }
+        stack.is_empty().then_some(false)
     }
 
     #[inline]
