@@ -87,7 +87,8 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_every_primitive_kind() {
     let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
     let p = &bvh.prims;
     assert!(!p.spheres.is_empty() && !p.quadrics.is_empty() && p.floor.is_some());
-    // coherent packets from a few eyes (a camera's 8 × 2 blocks), then scattered ones
+    // coherent rays from a few eyes (rows of 64, 16 consecutive rays a strip of one
+    // row), then scattered ones
     let mut rng = Rng(9);
     let (mut origin, mut dir) = (Vec::new(), Vec::new());
     for _ in 0..6 {
@@ -103,7 +104,7 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_every_primitive_kind() {
         );
         for y in 0..64 {
             for x in 0..64 {
-                // 0.5 mrad a pixel: a 8 × 2 block is one frustum
+                // 0.5 mrad a pixel: 16 neighbours are one frustum
                 let (u, v) = ((x as f64 - 32.0) / 2048.0, (y as f64 - 32.0) / 2048.0);
                 origin.push(eye);
                 dir.push((centre + right * u + up * v).normalize().as_vec3());

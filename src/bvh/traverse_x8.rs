@@ -113,8 +113,8 @@ impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
     /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide/walk_x8.rs`); in trees of at least
-    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs go lane by lane through
-    /// the 8-wide single-ray walk; the others walk the binary tree
+    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs take the 8-wide single-ray
+    /// walk per lane ([`Bvh::intersect_x8_lanes`]); the others walk the binary tree
     /// ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8<T: TriangleKernel>(
         &self,
@@ -169,9 +169,9 @@ impl Bvh {
         self.intersect_x8_binary::<T>(r, active, hit, steps);
     }
 
-    /// [`Bvh::intersect_x8`] lane by lane: each lane of `active` through
-    /// [`Bvh::intersect_1`] (incoherent packets here, and the renderer's packets of
-    /// too few lanes).
+    /// [`Bvh::intersect_x8`] per lane: each lane of `active` gets what
+    /// [`Bvh::intersect_1`] gives it, the lanes' walks of the wide tree stepped in turn
+    /// (incoherent packets here, and the renderer's packets of too few lanes).
     pub fn intersect_x8_lanes<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -393,7 +393,8 @@ impl Bvh {
         }
     }
 
-    /// [`Bvh::occluded_x8`] lane by lane through [`Bvh::occluded_1`] (incoherent
+    /// [`Bvh::occluded_x8`] per lane: each lane of `active` gets what
+    /// [`Bvh::occluded_1`] gives it, the lanes' walks stepped in turn (incoherent
     /// packets here, and the renderer's packets of too few lanes).
     pub fn occluded_x8_lanes<T: TriangleKernel>(
         &self,

@@ -1,12 +1,15 @@
-//! The instruction set of the fast path's hot kernels, chosen once per process.
+//! The instruction set of the fast path's packet kernels, chosen per renderer and per
+//! `bench-trace` run (the command line's `--isa`, else `OCTARAY_ISA`, else the widest
+//! the CPU runs).
 //!
 //! One binary holds the packet walks twice: at 8 lanes compiled for the build's target
 //! (`avx2`; x86-64-v3 by default) and at 16 lanes over `__m512` in functions compiled
 //! with AVX-512 enabled (`avx512`, which adds them; the 8-lane and single-ray code is
 //! the same under both). The CPU is asked once (`is_x86_feature_detected!`);
 //! `--isa auto|avx2|avx512` or `OCTARAY_ISA` force a choice, and `avx512` on a CPU
-//! without it is refused. An [`Isa`] value is the proof that its kernels can run: it
-//! is made only by [`Isa::detect`], [`Isa::parse`] and [`Isa::AVX2`].
+//! without it is refused. An [`Isa`] value is the proof that its kernels can run: an
+//! `avx512` one is made only by [`Isa::avx512`] (and the functions that call it) on a
+//! CPU that has every feature the AVX-512 functions are compiled with.
 
 use std::fmt;
 
@@ -60,11 +63,14 @@ impl Isa {
     /// The build's own 8-lane kernels: they run wherever the binary runs.
     pub const AVX2: Isa = Isa(IsaKind::Avx2);
 
-    /// The AVX-512 kernels, if this CPU has AVX-512 F, VL, BW and DQ.
+    /// The AVX-512 kernels, if this CPU has AVX-512 F, VL, BW and DQ (and AVX2, FMA).
     pub fn avx512() -> Option<Isa> {
         #[cfg(target_arch = "x86_64")]
         {
-            let has = std::is_x86_feature_detected!("avx512f")
+            // every feature the AVX-512 functions are compiled with
+            let has = std::is_x86_feature_detected!("avx2")
+                && std::is_x86_feature_detected!("fma")
+                && std::is_x86_feature_detected!("avx512f")
                 && std::is_x86_feature_detected!("avx512vl")
                 && std::is_x86_feature_detected!("avx512bw")
                 && std::is_x86_feature_detected!("avx512dq");

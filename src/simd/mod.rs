@@ -16,7 +16,7 @@
 
 pub mod isa;
 pub mod packet;
-pub mod w16;
+pub(crate) mod w16;
 mod w8;
 
 use std::fmt::Debug;
@@ -68,8 +68,6 @@ pub trait IntLanes: Copy + Debug + Send + Sync {
     fn select(m: Self::Mask, t: Self, f: Self) -> Self;
     /// Lanes `>= 0`.
     fn non_negative(self) -> Self::Mask;
-    /// Lanes equal to `o`'s.
-    fn eq(self, o: Self) -> Self::Mask;
     #[inline(always)]
     fn lane(self, i: usize) -> i32 {
         self.to_array().as_ref()[i]
@@ -91,8 +89,6 @@ pub trait Lanes:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
-    /// The number of lanes.
-    const N: usize;
     type Mask: LaneMask;
     type Int: IntLanes<Mask = Self::Mask>;
     /// The lanes as an array, `[f32; N]`.
@@ -112,7 +108,6 @@ pub trait Lanes:
     }
 
     fn abs(self) -> Self;
-    fn sqrt(self) -> Self;
     fn fast_min(self, o: Self) -> Self;
     fn fast_max(self, o: Self) -> Self;
     fn min(self, o: Self) -> Self;
@@ -120,10 +115,6 @@ pub trait Lanes:
     /// `self` with its sign flipped in the lanes where `s` has its sign bit set
     /// (`self ^ (s & -0.0)`).
     fn xor_sign(self, s: Self) -> Self;
-    /// `self & -0.0`: the sign bits alone.
-    fn sign_bits(self) -> Self;
-    /// `self | o`, bitwise.
-    fn bit_or(self, o: Self) -> Self;
 
     fn lt(self, o: Self) -> Self::Mask;
     fn le(self, o: Self) -> Self::Mask;

@@ -8,9 +8,10 @@
 //! beside the 16 lanes for the kernels that have only an 8-lane form (spheres and
 //! clipped quadrics).
 //!
-//! Code over 16 lanes uses functions, never closures or `map`: a closure is compiled
-//! on its own, without the AVX-512 of the function it sits in, and would call each
-//! 16-lane operation instead of inlining it.
+//! No closure (nor `map`, which takes one) touches a 16-lane value: a closure is
+//! compiled on its own, without the AVX-512 of the function it sits in, and would call
+//! each 16-lane operation instead of inlining it. Functions marked
+//! `#[inline(always)]` do the same work.
 
 use super::{LaneMask, Lanes};
 
@@ -102,7 +103,7 @@ pub fn all_eq<L: Lanes>(v: L, s: f32, m: L::Mask) -> bool {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub use x16::{HitPacket16, RayPacket16};
+pub(crate) use x16::{HitPacket16, RayPacket16};
 
 #[cfg(target_arch = "x86_64")]
 mod x16 {
@@ -186,26 +187,37 @@ mod x16 {
 
         #[inline(always)]
         pub fn halves(&self) -> [HitPacket8; 2] {
-            let (t, u, v, p) = (
-                self.t.to_array(),
-                self.u.to_array(),
-                self.v.to_array(),
-                self.prim.to_array(),
-            );
-            let half = |h: usize| {
-                let r = 8 * h..8 * h + 8;
-                let f = |a: &[f32; 16]| f32x8::new(a[r.clone()].try_into().expect("8 lanes"));
+            let ([t0, t1], [u0, u1], [v0, v1]) = (split(self.t), split(self.u), split(self.v));
+            let p = self.prim.to_array();
+            let prim = |h: usize| i32x8::new(p[8 * h..8 * h + 8].try_into().expect("8 lanes"));
+            [
                 HitPacket8 {
-                    t: f(&t),
-                    prim: i32x8::new(p[r.clone()].try_into().expect("8 lanes")),
-                    u: f(&u),
-                    v: f(&v),
-                }
-            };
-            [half(0), half(1)]
+                    t: t0,
+                    prim: prim(0),
+                    u: u0,
+                    v: v0,
+                },
+                HitPacket8 {
+                    t: t1,
+                    prim: prim(1),
+                    u: u1,
+                    v: v1,
+                },
+            ]
         }
+    }
+
+    /// Lanes 0–7 and 8–15 of `v`.
+    #[inline(always)]
+    pub fn split(v: F16) -> [f32x8; 2] {
+        let a = v.to_array();
+        let (lo, hi) = a.split_at(8);
+        [
+            f32x8::new(lo.try_into().expect("8 lanes")),
+            f32x8::new(hi.try_into().expect("8 lanes")),
+        ]
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-pub use x16::{cat_mask, half_mask};
+pub(crate) use x16::{cat_mask, half_mask, split};

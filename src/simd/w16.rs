@@ -1,10 +1,10 @@
 //! 16 lanes over AVX-512: [`F16`] (`__m512`), [`M16`] (a `__mmask16`) and [`I16`]
 //! (`__m512i`).
 //!
-//! Only the `avx512` kernels use them, entered through functions compiled with
-//! `#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq")]` (`Isa::Avx512`),
-//! with everything below `#[inline(always)]`, so that each method here becomes the one
-//! instruction it names. The operations are those of `wide::f32x8` lane for lane
+//! Private to the crate. Only the `avx512` kernels use them, inlined into functions
+//! compiled with `#[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]`
+//! and called only with an `isa::Avx512` token, with everything below
+//! `#[inline(always)]`, so that each method here becomes the one instruction it names. The operations are those of `wide::f32x8` lane for lane
 //! (the same comparison predicates, the same `min`/`max` operand order, negation by
 //! the sign bit), so a kernel gives the same bits per lane at both widths.
 
@@ -18,8 +18,8 @@ mod imp {
 
     use crate::simd::{IntLanes, LaneMask, Lanes};
 
-    /// 16 f32 lanes. A value exists only in code reached through `Isa::Avx512`, which
-    /// is chosen only on a CPU with AVX-512 F, VL, BW and DQ (`Isa::detect`).
+    /// 16 f32 lanes, used only in code reached through an `isa::Avx512` token (module
+    /// doc).
     #[derive(Clone, Copy, Debug)]
     #[repr(transparent)]
     pub struct F16(__m512);
@@ -35,9 +35,11 @@ mod imp {
     pub struct M16(pub u16);
 
     // SAFETY (every `unsafe` block below): the intrinsics need AVX-512 F and DQ (the
-    // float xor/and/or) at run time, and `F16`/`I16` values exist only on CPUs that
-    // have them (see `F16`); the loads and stores read or write exactly the 64 bytes
-    // of an `[f32; 16]` or `[i32; 16]` owned by the caller, unaligned.
+    // float xor/and/or) at run time. These types are private to the crate, and every
+    // use of them is inlined into a function compiled with AVX-512 that is called
+    // only with an `Avx512` token, which only a CPU that has the features yields
+    // (`isa.rs`). The loads and stores read or write exactly the 64 bytes of an
+    // `[f32; 16]` or `[i32; 16]` owned by the caller, unaligned.
 
     impl LaneMask for M16 {
         const ALL: M16 = M16(u16::MAX);
@@ -103,10 +105,6 @@ mod imp {
         fn non_negative(self) -> M16 {
             unsafe { M16(_mm512_cmpge_epi32_mask(self.0, _mm512_setzero_si512())) }
         }
-        #[inline(always)]
-        fn eq(self, o: I16) -> M16 {
-            unsafe { M16(_mm512_cmpeq_epi32_mask(self.0, o.0)) }
-        }
     }
 
     macro_rules! binop {
@@ -142,7 +140,6 @@ mod imp {
     }
 
     impl Lanes for F16 {
-        const N: usize = 16;
         type Mask = M16;
         type Int = I16;
         type Array = [f32; 16];
@@ -168,10 +165,6 @@ mod imp {
         #[inline(always)]
         fn abs(self) -> F16 {
             unsafe { F16(_mm512_andnot_ps(_mm512_set1_ps(-0.0), self.0)) }
-        }
-        #[inline(always)]
-        fn sqrt(self) -> F16 {
-            unsafe { F16(_mm512_sqrt_ps(self.0)) }
         }
         #[inline(always)]
         fn fast_min(self, o: F16) -> F16 {
@@ -200,14 +193,6 @@ mod imp {
                     _mm512_and_ps(s.0, _mm512_set1_ps(-0.0)),
                 ))
             }
-        }
-        #[inline(always)]
-        fn sign_bits(self) -> F16 {
-            unsafe { F16(_mm512_and_ps(self.0, _mm512_set1_ps(-0.0))) }
-        }
-        #[inline(always)]
-        fn bit_or(self, o: F16) -> F16 {
-            unsafe { F16(_mm512_or_ps(self.0, o.0)) }
         }
         #[inline(always)]
         fn lt(self, o: F16) -> M16 {

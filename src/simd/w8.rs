@@ -55,14 +55,9 @@ impl IntLanes for i32x8 {
     fn non_negative(self) -> Mask8 {
         Mask8(wide::bytemuck::cast(self.simd_ge(i32x8::ZERO)))
     }
-    #[inline(always)]
-    fn eq(self, o: i32x8) -> Mask8 {
-        Mask8(wide::bytemuck::cast(self.simd_eq(o)))
-    }
 }
 
 impl Lanes for f32x8 {
-    const N: usize = 8;
     type Mask = Mask8;
     type Int = i32x8;
     type Array = [f32; 8];
@@ -92,10 +87,6 @@ impl Lanes for f32x8 {
         f32x8::abs(self)
     }
     #[inline(always)]
-    fn sqrt(self) -> f32x8 {
-        f32x8::sqrt(self)
-    }
-    #[inline(always)]
     fn fast_min(self, o: f32x8) -> f32x8 {
         f32x8::fast_min(self, o)
     }
@@ -114,14 +105,6 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn xor_sign(self, s: f32x8) -> f32x8 {
         self ^ (s & f32x8::splat(-0.0))
-    }
-    #[inline(always)]
-    fn sign_bits(self) -> f32x8 {
-        self & f32x8::splat(-0.0)
-    }
-    #[inline(always)]
-    fn bit_or(self, o: f32x8) -> f32x8 {
-        self | o
     }
     #[inline(always)]
     fn lt(self, o: f32x8) -> Mask8 {

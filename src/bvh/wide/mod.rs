@@ -20,7 +20,7 @@
 pub mod collapse;
 pub mod walk_1;
 #[cfg(target_arch = "x86_64")]
-pub mod walk_x16;
+pub(crate) mod walk_x16;
 pub mod walk_x8;
 
 use wide::f32x8;

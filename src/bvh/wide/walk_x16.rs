@@ -11,14 +11,14 @@
 //! by half. A lane gets what the 8-lane walks give it, bit for bit: the kernels are
 //! the same generic code (`tests/lanes.rs`).
 
-use super::walk_x8::{Frustum, Mask, WidePacket, finite_lanes, shared_octant};
+use super::walk_x8::{Frustum, WidePacket, finite_lanes, shared_octant};
 use super::{TriBlock, walk_x8};
 use crate::bvh::{Bvh, Steps};
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, PrimSet};
 use crate::math::packet::Mask8;
 use crate::simd::LaneMask;
-use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask};
+use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask, split};
 use crate::simd::w16::{F16, M16};
 
 impl WidePacket for RayPacket16 {
@@ -75,7 +75,7 @@ impl WidePacket for RayPacket16 {
         left: M16,
         t_max: F16,
     ) -> M16 {
-        let t = halves_of(t_max);
+        let t = split(t_max);
         let blocked = |k: usize| {
             let a = half_mask(left, k);
             if a.none() {
@@ -85,15 +85,6 @@ impl WidePacket for RayPacket16 {
         };
         cat_mask(blocked(0), blocked(1))
     }
-}
-
-/// Lanes 0–7 and 8–15 of `v`.
-#[inline(always)]
-fn halves_of(v: F16) -> [wide::f32x8; 2] {
-    use crate::simd::Lanes as _;
-    let a = v.to_array();
-    let f = |h: usize| wide::f32x8::new(a[8 * h..8 * h + 8].try_into().expect("8 lanes"));
-    [f(0), f(1)]
 }
 
 /// The direction signs every active lane of both halves shares, or `None`.
@@ -180,31 +171,44 @@ impl Bvh {
         steps: &mut Steps,
     ) -> M16 {
         let spread = self.frustum_spread();
-        let t = halves_of(t_max);
+        let t = split(t_max);
         let half = [half_mask(active, 0), half_mask(active, 1)];
-        if spread >= 0.0 && !self.wide.nodes.is_empty() {
-            let left =
-                [0, 1].map(|k| self.occluded_beside_x8::<T>(&r.halves[k], half[k], t[k], steps));
-            let fin = [0, 1].map(|k| left[k] & finite_lanes(&r.halves[k]));
-            let act = cat_mask(fin[0], fin[1]);
-            if act.none() {
-                return active.and_not(cat_mask(left[0], left[1]));
-            }
-            if let Some(oct) = octant_of(r, fin) {
-                let [o, d, inv] = r.rays();
-                if let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
-                    let blocked: Mask<RayPacket16> = with_const!(
-                        oct,
-                        [0, 1, 2, 3, 4, 5, 6, 7],
-                        self.frustum_occlusion_x16::<T>(r, act, &fr, t_max, steps)
-                    );
-                    return active.and_not(cat_mask(left[0], left[1])) | blocked;
+        let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
+        let act = cat_mask(fin[0], fin[1]);
+        // the frustum of every finite lane (a superset of those the floor and the
+        // unbounded quadrics leave: still a bound of each), else each half at 8 lanes
+        if spread >= 0.0
+            && !self.wide.nodes.is_empty()
+            && act.any()
+            && let Some(oct) = octant_of(r, fin)
+            && let [o, d, inv] = r.rays()
+            && let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal)
+        {
+            let mut left = [Mask8::NONE; 2];
+            for (k, l) in left.iter_mut().enumerate() {
+                if half[k].any() {
+                    *l = self.occluded_beside_x8::<T>(&r.halves[k], half[k], t[k], steps);
                 }
             }
+            let rest = cat_mask(left[0] & fin[0], left[1] & fin[1]);
+            let blocked = if rest.any() {
+                with_const!(
+                    oct,
+                    [0, 1, 2, 3, 4, 5, 6, 7],
+                    self.frustum_occlusion_x16::<T>(r, rest, &fr, t_max, steps)
+                )
+            } else {
+                M16::NONE
+            };
+            return active.and_not(cat_mask(left[0], left[1])) | blocked;
         }
-        let mut blocked = |k: usize| self.occluded_x8::<T>(&r.halves[k], half[k], t[k], steps);
-        let b0 = blocked(0);
-        cat_mask(b0, blocked(1))
+        let mut blocked = [Mask8::NONE; 2];
+        for (k, b) in blocked.iter_mut().enumerate() {
+            if half[k].any() {
+                *b = self.occluded_x8::<T>(&r.halves[k], half[k], t[k], steps);
+            }
+        }
+        cat_mask(blocked[0], blocked[1])
     }
 
     #[inline(always)]

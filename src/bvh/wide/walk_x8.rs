@@ -11,7 +11,8 @@
 //! leaves. In a leaf, the frustum test of a triangle block's per-lane binary leaf boxes
 //! picks the triangles to test (all of them in a block of one binary leaf, whose box
 //! the frustum has passed); each is tested against the whole packet with the packet
-//! kernel (`TriangleKernel::intersect_splat_x8`, the binary packet walk's), and a lane's
+//! kernel (`TriangleKernel::intersect_splat_x8`, the binary packet walk's, or at 16
+//! lanes its twin `intersect_splat_lanes`), and a lane's
 //! hit counts only when the lane also passes that triangle's binary leaf box (the
 //! single-ray wide walk's rule, see [`TriBlock`]), so a lane reports what
 //! the binary walks report for it.
@@ -73,7 +74,6 @@ impl Frustum {
     /// or their origins spread over more than `spread` times `size` (the tree's
     /// diagonal) on an axis.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn new<L: simd::Lanes>(
         o: [L; 3],
         d: [L; 3],
@@ -179,17 +179,8 @@ impl Frustum {
 /// `neg` in the lanes where the sign bit of `d` is set (−0 included), `pos` elsewhere.
 #[inline(always)]
 fn by_sign(d: f32x8, neg: f32x8, pos: f32x8) -> f32x8 {
-    // one `vblendvps`, which reads only the sign bits of its mask
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    {
-        use safe_arch::{blend_varying_m256, m256};
-        let m = |v: f32x8| m256(wide::bytemuck::cast(v));
-        wide::bytemuck::cast(blend_varying_m256(m(pos), m(neg), m(d)).0)
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-    {
-        Mask8(d.is_sign_negative()).select(neg, pos)
-    }
+    // one `vblendvps`, which reads only the sign bits of its mask (`simd::w8`)
+    <f32x8 as simd::Lanes>::select_by_sign(d, neg, pos)
 }
 
 /// Lanes whose origin and 1/d are finite (the others never hit a bounded primitive and
@@ -281,7 +272,6 @@ pub(crate) trait WidePacket {
         code: i32,
     );
     /// A leaf of spheres or clipped quadrics (closest hit).
-    #[allow(clippy::too_many_arguments)]
     fn other_leaf<T: TriangleKernel>(
         &self,
         prims: &PrimSet,
@@ -292,7 +282,6 @@ pub(crate) trait WidePacket {
         hit: &mut Self::Hit,
     );
     /// A leaf of spheres or clipped quadrics (any hit): the lanes of `left` blocked.
-    #[allow(clippy::too_many_arguments)]
     fn other_leaf_occluded<T: TriangleKernel>(
         &self,
         prims: &PrimSet,
