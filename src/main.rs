@@ -238,7 +238,8 @@ struct RenderArgs {
     skip_existing: bool,
     /// Instruction set of the packet kernels: auto (the widest this CPU runs), avx2
     /// (8-lane packets) or avx512 (camera rays in 16-lane packets); the image is the
-    /// same under each. Default: the OCTARAY_ISA environment variable, else auto.
+    /// same under each. Default: the OCTARAY_ISA environment variable, else auto
+    /// (OCTARAY_ISA, when set, must name one of these for every command).
     #[arg(long, value_name = "auto|avx2|avx512")]
     isa: Option<String>,
 }
@@ -269,7 +270,8 @@ struct BenchTraceArgs {
     reps: u32,
     /// Instruction set of the kernels: auto (the widest this CPU runs), avx2 (8-lane
     /// packets) or avx512 (adds the 16-lane packets, mode=16); default: the
-    /// OCTARAY_ISA environment variable, else auto.
+    /// OCTARAY_ISA environment variable, else auto (OCTARAY_ISA, when set, must name
+    /// one of these for every command).
     #[arg(long, value_name = "auto|avx2|avx512")]
     isa: Option<String>,
 }
