@@ -31,6 +31,33 @@ impl<T: TriangleKernel> WideRay<'_, T> {
     }
 }
 
+/// Calls `f` with eight empty stacks, each its own local, left uninitialised and never
+/// moved (an array of them was written out with zeros: kilobytes per packet).
+#[inline(always)]
+fn with_stacks<E: Copy, R>(f: impl FnOnce([&mut Stack<E, WIDE_STACK>; 8]) -> R) -> R {
+    let (mut s0, mut s1, mut s2, mut s3) = (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+    let (mut s4, mut s5, mut s6, mut s7) = (Stack::new(), Stack::new(), Stack::new(), Stack::new());
+    f([
+        &mut s0, &mut s1, &mut s2, &mut s3, &mut s4, &mut s5, &mut s6, &mut s7,
+    ])
+}
+
+/// Steps the walks `live` (bit k: walk k) in turn, one step each per round, until
+/// `step(k)` has returned false (walk k ended) for every one.
+#[inline(always)]
+fn in_turn(mut live: u32, mut step: impl FnMut(usize) -> bool) {
+    while live != 0 {
+        let mut bits = live;
+        while bits != 0 {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if !step(k) {
+                live &= !(1 << k);
+            }
+        }
+    }
+}
+
 /// One ray's walk in progress (what `walk_1` keeps in locals), for walks stepped in
 /// turn.
 struct Walk<'a, T: TriangleKernel> {
@@ -173,15 +200,6 @@ impl Bvh {
             return;
         }
         let mut walks: [Option<Walk<T>>; N] = [const { None }; N];
-        // beside the walks, never moved, each its own local: kilobytes left
-        // uninitialised (an array of them was written out with zeros)
-        let (mut s0, mut s1, mut s2, mut s3) =
-            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
-        let (mut s4, mut s5, mut s6, mut s7) =
-            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
-        let stacks: [&mut Stack<Pending, WIDE_STACK>; N] = [
-            &mut s0, &mut s1, &mut s2, &mut s3, &mut s4, &mut s5, &mut s6, &mut s7,
-        ];
         let mut live = 0u32;
         for (k, r) in rays.iter().enumerate() {
             if finite(r) {
@@ -192,17 +210,12 @@ impl Bvh {
                 live |= 1 << k;
             }
         }
-        while live != 0 {
-            let mut bits = live;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
+        with_stacks(|stacks: [&mut Stack<Pending, WIDE_STACK>; N]| {
+            in_turn(live, |k| {
                 let walk = walks[k].as_mut().expect("a live walk");
-                if !self.step_1(walk, stacks[k], &mut hits[k], steps) {
-                    live &= !(1 << k);
-                }
-            }
-        }
+                self.step_1(walk, stacks[k], &mut hits[k], steps)
+            })
+        });
     }
 
     /// One step of a ray's walk (`walk_1`'s loop body): the node or leaf at `w.cur`,
@@ -360,39 +373,25 @@ impl Bvh {
             return 0;
         }
         let mut walks: [Option<WideRay<T>>; N] = [const { None }; N];
-        // each its own local, as in `intersect_wide_interleaved`
-        let (mut s0, mut s1, mut s2, mut s3) =
-            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
-        let (mut s4, mut s5, mut s6, mut s7) =
-            (Stack::new(), Stack::new(), Stack::new(), Stack::new());
-        let stacks: [&mut Stack<u32, WIDE_STACK>; N] = [
-            &mut s0, &mut s1, &mut s2, &mut s3, &mut s4, &mut s5, &mut s6, &mut s7,
-        ];
         let mut live = 0u32;
         for (k, r) in rays.iter().enumerate() {
             if finite(r) {
                 walks[k] = Some(WideRay::new(r));
-                stacks[k].push(0);
                 live |= 1 << k;
             }
         }
         let mut blocked = 0;
-        while live != 0 {
-            let mut bits = live;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let wr = walks[k].as_ref().expect("a live walk");
-                match self.occluded_step_1(wr, stacks[k], t_max[k], steps) {
-                    Some(true) => {
-                        blocked |= 1 << k;
-                        live &= !(1 << k);
-                    }
-                    Some(false) => live &= !(1 << k),
-                    None => {}
-                }
+        with_stacks(|stacks: [&mut Stack<u32, WIDE_STACK>; N]| {
+            for k in (0..N).filter(|k| live >> k & 1 == 1) {
+                stacks[k].push(0);
             }
-        }
+            in_turn(live, |k| {
+                let wr = walks[k].as_ref().expect("a live walk");
+                let end = self.occluded_step_1(wr, stacks[k], t_max[k], steps);
+                blocked |= ((end == Some(true)) as u32) << k;
+                end.is_none()
+            })
+        });
         blocked
     }
 

@@ -115,37 +115,55 @@ impl Bvh {
         hit: &mut HitPacket16,
         steps: &mut Steps,
     ) {
-        let spread = self.frustum_spread();
-        let half = [half_mask(active, 0), half_mask(active, 1)];
-        let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
-        let act = cat_mask(fin[0], fin[1]);
-        if spread >= 0.0
-            && !self.wide.nodes.is_empty()
-            && act.any()
-            && let Some(oct) = octant_of(r, fin)
-        {
-            let [o, d, inv] = r.rays();
-            if let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
-                with_const!(
-                    oct,
-                    [0, 1, 2, 3, 4, 5, 6, 7],
-                    self.frustum_walk_x16::<T>(r, act, &fr, hit, steps)
-                );
-                let mut h = hit.halves();
-                for (k, hk) in h.iter_mut().enumerate() {
-                    if half[k].any() {
-                        self.intersect_beside_x8::<T>(&r.halves[k], half[k], hk, steps);
-                    }
+        let (half, fin, frustum) = self.frustum_x16(r, active);
+        if let Some((oct, fr)) = frustum {
+            let act = cat_mask(fin[0], fin[1]);
+            with_const!(
+                oct,
+                [0, 1, 2, 3, 4, 5, 6, 7],
+                self.frustum_walk_x16::<T>(r, act, &fr, hit, steps)
+            );
+            let mut h = hit.halves();
+            for (k, hk) in h.iter_mut().enumerate() {
+                if half[k].any() {
+                    self.intersect_beside_x8::<T>(&r.halves[k], half[k], hk, steps);
                 }
-                *hit = HitPacket16::from_halves(h);
-                return;
             }
+            *hit = HitPacket16::from_halves(h);
+            return;
         }
         let mut h = hit.halves();
         for (k, hk) in h.iter_mut().enumerate() {
             self.intersect_x8::<T>(&r.halves[k], half[k], hk, steps);
         }
         *hit = HitPacket16::from_halves(h);
+    }
+
+    /// The halves of `active`, their finite lanes, and when one frustum serves all the
+    /// finite lanes (a tree big enough, shared direction signs, within the spread
+    /// limit) their direction signs and that frustum; else the halves go at 8 lanes.
+    #[inline(always)]
+    fn frustum_x16(
+        &self,
+        r: &RayPacket16,
+        active: M16,
+    ) -> ([Mask8; 2], [Mask8; 2], Option<(u32, Frustum)>) {
+        let spread = self.frustum_spread();
+        let half = [half_mask(active, 0), half_mask(active, 1)];
+        let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
+        let act = cat_mask(fin[0], fin[1]);
+        let frustum = if spread >= 0.0
+            && !self.wide.nodes.is_empty()
+            && act.any()
+            && let Some(oct) = octant_of(r, fin)
+            && let [o, d, inv] = r.rays()
+            && let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal)
+        {
+            Some((oct, fr))
+        } else {
+            None
+        };
+        (half, fin, frustum)
     }
 
     #[inline(always)]
@@ -170,20 +188,11 @@ impl Bvh {
         t_max: F16,
         steps: &mut Steps,
     ) -> M16 {
-        let spread = self.frustum_spread();
         let t = split(t_max);
-        let half = [half_mask(active, 0), half_mask(active, 1)];
-        let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
-        let act = cat_mask(fin[0], fin[1]);
+        let (half, fin, frustum) = self.frustum_x16(r, active);
         // the frustum of every finite lane (a superset of those the floor and the
         // unbounded quadrics leave: still a bound of each), else each half at 8 lanes
-        if spread >= 0.0
-            && !self.wide.nodes.is_empty()
-            && act.any()
-            && let Some(oct) = octant_of(r, fin)
-            && let [o, d, inv] = r.rays()
-            && let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal)
-        {
+        if let Some((oct, fr)) = frustum {
             let mut left = [Mask8::NONE; 2];
             for (k, l) in left.iter_mut().enumerate() {
                 if half[k].any() {

@@ -25,7 +25,6 @@ mod lights;
 mod path;
 mod shade;
 
-use crate::bvh::wide::walk_x8::WIDE_PACKET_MIN_NODES;
 use crate::simd::isa::Avx512;
 use std::marker::PhantomData;
 use std::ops::Deref;
@@ -212,8 +211,7 @@ impl PacketRenderer {
     ) -> J::Out {
         let r = self;
         // (trees too small for the frustum walk would only pay for the pairing)
-        let x16 = (self.options.isa.avx512_kernels())
-            .filter(|_| self.bvh.wide.nodes.len() >= WIDE_PACKET_MIN_NODES);
+        let x16 = (self.options.isa.avx512_kernels()).filter(|_| self.bvh.frustum_spread() >= 0.0);
         match (self.options.shadow_any_hit, self.has_glass()) {
             (true, false) => job.run(Tracer::<Fixed<true, false, O, T>> { r, offset, x16 }),
             (false, false) => job.run(Tracer::<Fixed<false, false, O, T>> { r, offset, x16 }),
