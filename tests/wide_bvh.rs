@@ -13,7 +13,8 @@
 //!
 //! The packet walks (`Bvh::intersect_x8`/`occluded_x8`: the 8-wide tree for packets whose
 //! lanes share their direction signs, `wide_x8.rs`; lane by lane through the wide tree
-//! for packets of mixed signs in trees big enough for it, the binary tree otherwise) are
+//! for packets of mixed signs or scattered origins in trees big enough for it, the
+//! binary tree otherwise) are
 //! held to the same rules per lane against the binary single-ray walk, with inactive
 //! lanes (holding NaN) and active NaN lanes that must never hit.
 
@@ -23,7 +24,7 @@ use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::traverse_x8::LANES_MIN_NODES;
-use octaray::bvh::wide::walk_x8::FRUSTUM_SPREAD;
+use octaray::bvh::wide::walk_x8::{FRUSTUM_SPREAD, LANES_SPREAD};
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::Watertight;
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
@@ -691,15 +692,32 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
             assert!(t.one_octant * 10 >= t.packets * 9, "{t:?}");
         }
     }
-    // a packet of mixed signs takes exactly the single-ray walks of its lanes (same
-    // node and primitive tests), closest and any hit
+    // a packet of mixed signs, and one of shared signs whose origins lie far apart,
+    // take exactly the single-ray walks of their lanes (same node and primitive
+    // tests), closest and any hit
     let packets = packets_of(&rays, false);
     let mixed = packets
         .iter()
         .find(|p| p.len() == 8 && p.iter().any(|r| octant(r) != octant(&p[0])))
         .expect("a packet of mixed signs");
-    let o: [Vec3; 8] = std::array::from_fn(|l| mixed[l].origin);
-    let d: [Vec3; 8] = std::array::from_fn(|l| mixed[l].dir);
+    walks_as_its_lanes(&bvh, mixed);
+    let extent = |p: &[Ray1]| {
+        let lo = p.iter().fold(Vec3::INFINITY, |m, r| m.min(r.origin));
+        let hi = p.iter().fold(Vec3::NEG_INFINITY, |m, r| m.max(r.origin));
+        (hi - lo).max_element()
+    };
+    let scattered = packets_of(&rays, true)
+        .into_iter()
+        .find(|p| p.len() == 8 && extent(p) > 2.0 * LANES_SPREAD * bvh.wide.diagonal)
+        .expect("a packet of one octant, origins far apart");
+    walks_as_its_lanes(&bvh, &scattered);
+}
+
+/// The packet walks of the eight `rays` give each lane its single-ray walk's answers,
+/// closest and any hit, with the same node and primitive tests.
+fn walks_as_its_lanes(bvh: &Bvh, rays: &[Ray1]) {
+    let o: [Vec3; 8] = std::array::from_fn(|l| rays[l].origin);
+    let d: [Vec3; 8] = std::array::from_fn(|l| rays[l].dir);
     let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
     let (mut sx, mut s1) = (Steps::default(), Steps::default());
     let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
@@ -721,7 +739,7 @@ fn packet_walks_equal_binary_on_a_torus_incoherent() {
             occ.lane(l)
         );
     }
-    assert_eq!(sx, s1, "a mixed packet walks as its eight lanes do");
+    assert_eq!(sx, s1, "the packet walks as its eight lanes do");
 }
 
 #[test]

@@ -14,7 +14,9 @@ use wide::{f32x8, i32x8};
 
 use super::node::BvhNode;
 use super::slot::Stack;
-use super::wide::walk_x8::{FRUSTUM_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant};
+use super::wide::walk_x8::{
+    FRUSTUM_SPREAD, LANES_SPREAD, WIDE_PACKET_MIN_NODES, finite_lanes, shared_octant,
+};
 use super::{Bvh, STACK_SIZE, Steps};
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{Hit1, PrimKind};
@@ -113,8 +115,9 @@ impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
     /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide/walk_x8.rs`); in trees of at least
-    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs take the 8-wide single-ray
-    /// walk per lane ([`Bvh::intersect_x8_lanes`]); the others walk the binary tree
+    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs or spread past
+    /// [`LANES_SPREAD`] take the 8-wide single-ray walk per lane
+    /// ([`Bvh::intersect_x8_lanes`]); the others walk the binary tree
     /// ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8<T: TriangleKernel>(
         &self,
@@ -154,16 +157,19 @@ impl Bvh {
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
-            match shared_octant(r, act) {
-                Some(oct) if self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) => {
-                    self.intersect_beside_x8::<T>(r, active, hit, steps);
-                    return;
-                }
-                None if self.wide.nodes.len() >= LANES_MIN_NODES => {
-                    self.intersect_x8_lanes::<T>(r, active, hit, steps);
-                    return;
-                }
-                _ => {}
+            let scattered = match shared_octant(r, act) {
+                Some(oct) => match self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) {
+                    Ok(()) => {
+                        self.intersect_beside_x8::<T>(r, active, hit, steps);
+                        return;
+                    }
+                    Err(how_far) => how_far > LANES_SPREAD,
+                },
+                None => true,
+            };
+            if scattered && self.wide.nodes.len() >= LANES_MIN_NODES {
+                self.intersect_x8_lanes::<T>(r, active, hit, steps);
+                return;
             }
         }
         self.intersect_x8_binary::<T>(r, active, hit, steps);
@@ -380,16 +386,16 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         if spread < 0.0 || self.wide.nodes.is_empty() {
-            return self.occluded_x8_with::<T>(r, active, t_max, None, steps);
+            return self.occluded_x8_with::<T>(r, active, t_max, None, false, steps);
         }
+        let lanes = self.wide.nodes.len() >= LANES_MIN_NODES;
         match shared_octant(r, active & finite_lanes(r)) {
             Some(octant) => {
-                self.occluded_x8_with::<T>(r, active, t_max, Some((octant, spread)), steps)
+                let wide = Some((octant, spread));
+                self.occluded_x8_with::<T>(r, active, t_max, wide, lanes, steps)
             }
-            None if self.wide.nodes.len() >= LANES_MIN_NODES => {
-                self.occluded_x8_lanes::<T>(r, active, t_max, steps)
-            }
-            None => self.occluded_x8_with::<T>(r, active, t_max, None, steps),
+            None if lanes => self.occluded_x8_lanes::<T>(r, active, t_max, steps),
+            None => self.occluded_x8_with::<T>(r, active, t_max, None, false, steps),
         }
     }
 
@@ -403,27 +409,41 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        let tm = t_max.to_array();
         // each lane's floor and unbounded quadrics first (`occluded_1`'s order), then
-        // the walks of the lanes left, stepped in turn
-        let mut blocked = 0;
+        // the walks of the lanes left
+        let tm = t_max.to_array();
+        let beside = (0..8)
+            .filter(|&l| active.lane(l) && self.occluded_beside_1::<T>(&r.ray(l), tm[l], steps))
+            .fold(0, |m, l| m | 1 << l);
+        let beside = Mask8::from_bits(beside);
+        beside | self.occluded_wide_lanes::<T>(r, active.and_not(beside), t_max, steps)
+    }
+
+    /// The lanes of `active` blocked in the wide tree (the tree part of
+    /// [`Bvh::occluded_1`] per lane), the lanes' walks stepped in turn.
+    fn occluded_wide_lanes<T: TriangleKernel>(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let tm = t_max.to_array();
         let mut lanes = [0usize; 8];
         let mut n = 0;
         for l in (0..8).filter(|&l| active.lane(l)) {
-            if self.occluded_beside_1::<T>(&r.ray(l), tm[l], steps) {
-                blocked |= 1 << l;
-            } else {
-                lanes[n] = l;
-                n += 1;
-            }
+            lanes[n] = l;
+            n += 1;
         }
-        if n > 0 {
-            let rays: [Ray1; 8] = std::array::from_fn(|k| r.ray(lanes[k.min(n - 1)]));
-            let t: [f32; 8] = std::array::from_fn(|k| tm[lanes[k.min(n - 1)]]);
-            let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
-            for (k, &l) in lanes[..n].iter().enumerate() {
-                blocked |= (wide >> k & 1) << l;
-            }
+        if n == 0 {
+            return Mask8::NONE;
+        }
+        let rays: [Ray1; 8] = std::array::from_fn(|k| r.ray(lanes[k.min(n - 1)]));
+        let t: [f32; 8] = std::array::from_fn(|k| tm[lanes[k.min(n - 1)]]);
+        let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
+        let mut blocked = 0;
+        for (k, &l) in lanes[..n].iter().enumerate() {
+            blocked |= (wide >> k & 1) << l;
         }
         Mask8::from_bits(blocked)
     }
@@ -436,7 +456,7 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_with::<T>(r, active, t_max, None, steps)
+        self.occluded_x8_with::<T>(r, active, t_max, None, false, steps)
     }
 
     /// The lanes of `active` not blocked by the floor or the unbounded quadrics (with
@@ -473,9 +493,10 @@ impl Bvh {
         left
     }
 
-    /// The any-hit query: the list beside the tree, then the wide tree when
-    /// `wide_octant` (the lanes' direction signs, the spread limit) is given and the
-    /// packet is coherent enough, else the binary one.
+    /// The any-hit query: the list beside the tree, then the wide tree as one frustum
+    /// when `wide_octant` (the lanes' direction signs, the spread limit) is given and
+    /// the packet is coherent enough, else the lanes' own wide walks when `lanes`, else
+    /// the binary tree as a packet.
     #[inline(always)]
     fn occluded_x8_with<T: TriangleKernel>(
         &self,
@@ -483,6 +504,7 @@ impl Bvh {
         active: Mask8,
         t_max: f32x8,
         wide_octant: Option<(u32, f32)>,
+        lanes: bool,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
@@ -490,10 +512,12 @@ impl Bvh {
             Some((octant, spread)) if left.any() => {
                 self.occluded_x8_wide::<T>(r, left & finite_lanes(r), octant, spread, t_max, steps)
             }
-            _ => None,
+            _ => Err(0.0),
         };
-        if let Some(blocked) = frustum {
+        if let Ok(blocked) = frustum {
             left = left.and_not(blocked);
+        } else if lanes && frustum.is_err_and(|how_far| how_far > LANES_SPREAD) {
+            left = left.and_not(self.occluded_wide_lanes::<T>(r, left, t_max, steps));
         } else if !self.nodes.is_empty() && left.any() {
             let mut stack = Stack::<u32, STACK_SIZE>::new();
             stack.push(0);

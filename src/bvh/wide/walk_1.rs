@@ -106,6 +106,14 @@ impl BoxRay {
     }
 }
 
+/// The rays that enter the tree (bit k: `rays[k]`, see [`finite`]).
+#[inline]
+fn live_walks(rays: &[Ray1]) -> u32 {
+    (rays.iter().enumerate())
+        .filter(|(_, r)| finite(r))
+        .fold(0, |live, (k, _)| live | 1 << k)
+}
+
 /// Whether the ray enters the tree: a NaN or infinite origin or direction never hits
 /// a bounded primitive (their kernels give NaN), and would make the slab test NaN,
 /// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included.
@@ -196,24 +204,19 @@ impl Bvh {
     ) {
         const N: usize = 8;
         assert!(rays.len() <= N && rays.len() == hits.len(), "up to 8 rays");
-        if self.wide.nodes.is_empty() {
+        if self.wide.nodes.is_empty() || rays.is_empty() {
             return;
         }
-        let mut walks: [Option<Walk<T>>; N] = [const { None }; N];
-        let mut live = 0u32;
-        for (k, r) in rays.iter().enumerate() {
-            if finite(r) {
-                walks[k] = Some(Walk {
-                    wr: WideRay::new(r),
-                    cur: SlotRef::ROOT,
-                });
-                live |= 1 << k;
-            }
-        }
+        // every slot holds a walk, those past the rays a copy of the last (an array of
+        // `Option`s was written out whole, 4 KB, to say `None`)
+        let mut walks: [Walk<T>; N] = std::array::from_fn(|k| Walk {
+            wr: WideRay::new(&rays[k.min(rays.len() - 1)]),
+            cur: SlotRef::ROOT,
+        });
+        let live = live_walks(rays);
         with_stacks(|stacks: [&mut Stack<Pending, WIDE_STACK>; N]| {
             in_turn(live, |k| {
-                let walk = walks[k].as_mut().expect("a live walk");
-                self.step_1(walk, stacks[k], &mut hits[k], steps)
+                self.step_1(&mut walks[k], stacks[k], &mut hits[k], steps)
             })
         });
     }
@@ -369,25 +372,20 @@ impl Bvh {
     ) -> u32 {
         const N: usize = 8;
         assert!(rays.len() <= N && rays.len() == t_max.len(), "up to 8 rays");
-        if self.wide.nodes.is_empty() {
+        if self.wide.nodes.is_empty() || rays.is_empty() {
             return 0;
         }
-        let mut walks: [Option<WideRay<T>>; N] = [const { None }; N];
-        let mut live = 0u32;
-        for (k, r) in rays.iter().enumerate() {
-            if finite(r) {
-                walks[k] = Some(WideRay::new(r));
-                live |= 1 << k;
-            }
-        }
+        // (as in `intersect_wide_interleaved`)
+        let walks: [WideRay<T>; N] =
+            std::array::from_fn(|k| WideRay::new(&rays[k.min(rays.len() - 1)]));
+        let live = live_walks(rays);
         let mut blocked = 0;
         with_stacks(|stacks: [&mut Stack<u32, WIDE_STACK>; N]| {
             for k in (0..N).filter(|k| live >> k & 1 == 1) {
                 stacks[k].push(0);
             }
             in_turn(live, |k| {
-                let wr = walks[k].as_ref().expect("a live walk");
-                let end = self.occluded_step_1(wr, stacks[k], t_max[k], steps);
+                let end = self.occluded_step_1(&walks[k], stacks[k], t_max[k], steps);
                 blocked |= ((end == Some(true)) as u32) << k;
                 end.is_none()
             })

@@ -157,7 +157,7 @@ impl Bvh {
             && act.any()
             && let Some(oct) = octant_of(r, fin)
             && let [o, d, inv] = r.rays()
-            && let Some(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal)
+            && let Ok(fr) = Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal)
         {
             Some((oct, fr))
         } else {

@@ -48,6 +48,13 @@ use crate::simd::packet::{all_eq, dot3, max_in, min_in};
 /// two break even near 0.023 (benches/README.md); this keeps a margin.
 pub const FRUSTUM_SPREAD: f32 = 0.015;
 
+/// Spread (as [`FRUSTUM_SPREAD`]) past which a packet's lanes take their own single-ray
+/// walks of the wide tree, stepped in turn, instead of the binary packet walk: lanes
+/// that far apart share few nodes (random shadow rays of one light: 4× faster lane by
+/// lane), while packets just past the frustum limit (a silhouette, a curved mirror)
+/// still share most of their paths (benches/README.md).
+pub const LANES_SPREAD: f32 = 16.0 * FRUSTUM_SPREAD;
+
 /// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`):
 /// in smaller trees building the frustum costs more than the few binary steps it saves.
 pub const WIDE_PACKET_MIN_NODES: usize = 16;
@@ -69,10 +76,11 @@ impl Frustum {
     /// The frustum of the lanes `act` (non-empty, finite, all with the direction signs
     /// of `octant`: bit k set when 1/d < 0 on axis k) of a packet of any width, given
     /// its origins `o`, unit directions `d` and 1/d `inv`.
-    /// `None` when the lanes are too far apart for one frustum to serve them: their
-    /// directions more than `spread` radians from the first lane's (unit directions),
-    /// or their origins spread over more than `spread` times `size` (the tree's
-    /// diagonal) on an axis.
+    /// `Err(how far)` when the lanes are too far apart for one frustum to serve them:
+    /// their directions more than `spread` radians from the first lane's (unit
+    /// directions), or their origins spread over more than `spread` times `size` (the
+    /// tree's diagonal) on an axis; `how far` is the larger of the angle and the
+    /// origins' extent over `size`.
     #[inline(always)]
     pub(super) fn new<L: simd::Lanes>(
         o: [L; 3],
@@ -82,7 +90,7 @@ impl Frustum {
         octant: u32,
         spread: f32,
         size: f32,
-    ) -> Option<Frustum> {
+    ) -> Result<Frustum, f32> {
         use simd::LaneMask as _;
         let neg = [0, 1, 2].map(|a| (octant >> a & 1) as usize);
         let first = act.bits().trailing_zeros() as usize;
@@ -121,10 +129,10 @@ impl Frustum {
             .max(o_hi[2] - o_lo[2]);
         // (1 − cos θ ≈ θ²/2; an infinite spread lets every packet through)
         if cos < 1.0 - 0.5 * spread * spread || ext > spread * size {
-            return None;
+            return Err((2.0 * (1.0 - cos)).max(0.0).sqrt().max(ext / size));
         }
         let s = f32x8::splat;
-        Some(Frustum {
+        Ok(Frustum {
             o_near: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_hi[a] } else { o_lo[a] })),
             o_far: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_lo[a] } else { o_hi[a] })),
             r_lo: r_lo.map(s),
@@ -358,8 +366,8 @@ impl WidePacket for RayPacket8 {
 impl Bvh {
     /// The tree part of [`Bvh::intersect_x8`] through the 8-wide tree, for the lanes
     /// `active` (finite, see [`finite_lanes`]) when they share the direction signs
-    /// `octant` (see [`shared_octant`]); false (nothing done) when they spread wider
-    /// than `spread` (see [`Frustum::new`]).
+    /// `octant` (see [`shared_octant`]); `Err(how far)` (nothing done) when they spread
+    /// wider than `spread` (see [`Frustum::new`]).
     pub(crate) fn intersect_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -368,22 +376,20 @@ impl Bvh {
         spread: f32,
         hit: &mut HitPacket8,
         steps: &mut Steps,
-    ) -> bool {
+    ) -> Result<(), f32> {
         let w = &self.wide;
         if w.nodes.is_empty() || active.none() {
-            return true;
+            return Ok(());
         }
         let [o, d, inv] = r.rays();
-        let Some(fr) = Frustum::new(o, d, inv, active, octant, spread, w.diagonal) else {
-            return false;
-        };
+        let fr = Frustum::new(o, d, inv, active, octant, spread, w.diagonal)?;
         // the walk specialised to the direction signs (fixed entry and exit planes)
         with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
             self.frustum_walk_x8::<T>(r, active, &fr, hit, steps)
         );
-        true
+        Ok(())
     }
 
     /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant.
@@ -499,7 +505,7 @@ impl Bvh {
 
     /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
     /// `active` (finite, sharing the direction signs `octant`) blocked with 0 < t < t_max;
-    /// `None` (nothing done) when they spread wider than `spread`.
+    /// `Err(how far)` (nothing done) when they spread wider than `spread`.
     pub(crate) fn occluded_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -508,14 +514,14 @@ impl Bvh {
         spread: f32,
         t_max: f32x8,
         steps: &mut Steps,
-    ) -> Option<Mask8> {
+    ) -> Result<Mask8, f32> {
         let w = &self.wide;
         if w.nodes.is_empty() || active.none() {
-            return Some(Mask8::NONE);
+            return Ok(Mask8::NONE);
         }
         let [o, d, inv] = r.rays();
         let fr = Frustum::new(o, d, inv, active, octant, spread, w.diagonal)?;
-        Some(with_const!(
+        Ok(with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
             self.frustum_occlusion_x8::<T>(r, active, &fr, t_max, steps)
