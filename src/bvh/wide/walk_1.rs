@@ -42,6 +42,18 @@ fn with_stacks<E: Copy, R>(f: impl FnOnce([&mut Stack<E, WIDE_STACK>; 8]) -> R) 
     ])
 }
 
+/// [`with_stacks`] for sixteen walks.
+#[inline(always)]
+fn with_stacks16<E: Copy, R>(f: impl FnOnce([&mut Stack<E, WIDE_STACK>; 16]) -> R) -> R {
+    with_stacks(|[a0, a1, a2, a3, a4, a5, a6, a7]| {
+        with_stacks(|[b0, b1, b2, b3, b4, b5, b6, b7]| {
+            f([
+                a0, a1, a2, a3, a4, a5, a6, a7, b0, b1, b2, b3, b4, b5, b6, b7,
+            ])
+        })
+    })
+}
+
 /// Steps the walks `live` (bit k: walk k) in turn, one step each per round, until
 /// `step(k)` has returned false (walk k ended) for every one.
 #[inline(always)]
@@ -191,7 +203,7 @@ impl Bvh {
         }
     }
 
-    /// The tree part of [`Bvh::intersect_1`] for up to eight rays at once: each ray's
+    /// The tree part of [`Bvh::intersect_1`] for up to sixteen rays at once: each ray's
     /// walk of [`Bvh::walk_1`] on its own, stepped in turn, one node or leaf each, so
     /// that one ray's node and triangle fetches are in flight while the others compute
     /// (a single walk waits on each fetch: every next node's address is in the one
@@ -202,8 +214,23 @@ impl Bvh {
         hits: &mut [Hit1],
         steps: &mut Steps,
     ) {
-        const N: usize = 8;
-        assert!(rays.len() <= N && rays.len() == hits.len(), "up to 8 rays");
+        if rays.len() > 8 {
+            with_stacks16(|s| self.interleaved_with::<T, 16>(rays, hits, steps, s));
+        } else {
+            with_stacks(|s| self.interleaved_with::<T, 8>(rays, hits, steps, s));
+        }
+    }
+
+    /// [`Bvh::intersect_wide_interleaved`] of up to `N` rays with `N` stacks.
+    #[inline(always)]
+    fn interleaved_with<T: TriangleKernel, const N: usize>(
+        &self,
+        rays: &[Ray1],
+        hits: &mut [Hit1],
+        steps: &mut Steps,
+        stacks: [&mut Stack<Pending, WIDE_STACK>; N],
+    ) {
+        assert!(rays.len() <= N && rays.len() == hits.len(), "up to N rays");
         if self.wide.nodes.is_empty() || rays.is_empty() {
             return;
         }
@@ -214,10 +241,8 @@ impl Bvh {
             cur: SlotRef::ROOT,
         });
         let live = live_walks(rays);
-        with_stacks(|stacks: [&mut Stack<Pending, WIDE_STACK>; N]| {
-            in_turn(live, |k| {
-                self.step_1(&mut walks[k], stacks[k], &mut hits[k], steps)
-            })
+        in_turn(live, |k| {
+            self.step_1(&mut walks[k], stacks[k], &mut hits[k], steps)
         });
     }
 
@@ -361,7 +386,7 @@ impl Bvh {
         false
     }
 
-    /// The tree part of [`Bvh::occluded_1`] for up to eight rays at once (bit k of the
+    /// The tree part of [`Bvh::occluded_1`] for up to sixteen rays at once (bit k of the
     /// answer: ray k is blocked before `t_max[k]`), their walks stepped in turn as in
     /// [`Bvh::intersect_wide_interleaved`]; each ray gets its own walk's answer.
     pub(crate) fn occluded_wide_interleaved<T: TriangleKernel>(
@@ -370,8 +395,23 @@ impl Bvh {
         t_max: &[f32],
         steps: &mut Steps,
     ) -> u32 {
-        const N: usize = 8;
-        assert!(rays.len() <= N && rays.len() == t_max.len(), "up to 8 rays");
+        if rays.len() > 8 {
+            with_stacks16(|s| self.occluded_interleaved_with::<T, 16>(rays, t_max, steps, s))
+        } else {
+            with_stacks(|s| self.occluded_interleaved_with::<T, 8>(rays, t_max, steps, s))
+        }
+    }
+
+    /// [`Bvh::occluded_wide_interleaved`] of up to `N` rays with `N` stacks.
+    #[inline(always)]
+    fn occluded_interleaved_with<T: TriangleKernel, const N: usize>(
+        &self,
+        rays: &[Ray1],
+        t_max: &[f32],
+        steps: &mut Steps,
+        stacks: [&mut Stack<u32, WIDE_STACK>; N],
+    ) -> u32 {
+        assert!(rays.len() <= N && rays.len() == t_max.len(), "up to N rays");
         if self.wide.nodes.is_empty() || rays.is_empty() {
             return 0;
         }
@@ -380,15 +420,13 @@ impl Bvh {
             std::array::from_fn(|k| WideRay::new(&rays[k.min(rays.len() - 1)]));
         let live = live_walks(rays);
         let mut blocked = 0;
-        with_stacks(|stacks: [&mut Stack<u32, WIDE_STACK>; N]| {
-            for k in (0..N).filter(|k| live >> k & 1 == 1) {
-                stacks[k].push(0);
-            }
-            in_turn(live, |k| {
-                let end = self.occluded_step_1(&walks[k], stacks[k], t_max[k], steps);
-                blocked |= ((end == Some(true)) as u32) << k;
-                end.is_none()
-            })
+        for k in (0..N).filter(|k| live >> k & 1 == 1) {
+            stacks[k].push(0);
+        }
+        in_turn(live, |k| {
+            let end = self.occluded_step_1(&walks[k], stacks[k], t_max[k], steps);
+            blocked |= ((end == Some(true)) as u32) << k;
+            end.is_none()
         });
         blocked
     }
