@@ -91,6 +91,10 @@ impl WidePacket for RayPacket16 {
     }
 }
 
+/// How a 16-lane packet goes: as one frustum (its direction signs and the frustum),
+/// else `Err(scattered)`: true for the lanes' own walks, false for 8 lanes half by half.
+type Route16 = Result<(u32, Frustum), bool>;
+
 /// The direction signs every active lane of both halves shares, or `None`.
 #[inline(always)]
 fn octant_of(r: &RayPacket16, act: [Mask8; 2]) -> Option<u32> {
@@ -154,11 +158,7 @@ impl Bvh {
     /// [`LANES_SPREAD`], in a tree of at least [`LANES_MIN_NODES`] wide nodes), false
     /// when the halves go at 8 lanes.
     #[inline(always)]
-    fn frustum_x16(
-        &self,
-        r: &RayPacket16,
-        active: M16,
-    ) -> ([Mask8; 2], [Mask8; 2], Result<(u32, Frustum), bool>) {
+    fn frustum_x16(&self, r: &RayPacket16, active: M16) -> ([Mask8; 2], [Mask8; 2], Route16) {
         let spread = self.frustum_spread();
         let half = [half_mask(active, 0), half_mask(active, 1)];
         let fin = [0, 1].map(|k| half[k] & finite_lanes(&r.halves[k]));
