@@ -181,6 +181,20 @@ impl WideBvh {
     ) -> SlotRef {
         let nd = near.to_array();
         let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+        if bits & (bits - 1) == 0 {
+            // two: the nearer next, the other pushed (the same order as the keys give)
+            let second = bits.trailing_zeros() as usize;
+            let (near_s, far_s) = if key(second) < key(first) {
+                (second, first)
+            } else {
+                (first, second)
+            };
+            stack.push(Pending {
+                to: node.get(far_s),
+                near: f32::from_bits(nd[far_s].to_bits() & 0x7fff_ffff),
+            });
+            return node.get(near_s);
+        }
         let mut keys = [0u64; 8];
         keys[0] = key(first);
         let mut n = 1;
