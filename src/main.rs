@@ -191,6 +191,10 @@ struct ViewArgs {
     /// camera: eye, look-at, up, fov), for `octaray render --camera-path`.
     #[arg(long, value_name = "PATH.txt")]
     record: Option<PathBuf>,
+    /// Instruction set of the packet kernels, for the window and captures: auto,
+    /// avx2 or avx512, as `octaray render --isa` (default: OCTARAY_ISA, else auto).
+    #[arg(long, value_name = "auto|avx2|avx512")]
+    isa: Option<String>,
 }
 
 #[derive(Args, Debug, Default)]
@@ -800,7 +804,9 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         Some(name) => name,
         None => viewer::default_profile_name(),
     };
-    let profile = load_profile("--profile", profile_name)?;
+    let isa = chosen_isa(args.isa.as_deref())?;
+    let mut profile = load_profile("--profile", profile_name)?;
+    profile.packet.isa = isa;
     warn_caustic_pairs(&parsed.scene, &profile);
     if let Some(frames) = args.frames {
         let mut record = open_record(args)?;
@@ -823,7 +829,11 @@ fn run_view(args: &ViewArgs) -> Result<(), Failure> {
         scene: std::sync::Arc::new(parsed.scene),
         scene_name: name,
         capture_profile: profile.clone(),
-        moving_profile: load_profile("--preview-profile", &args.preview_profile)?,
+        moving_profile: {
+            let mut p = load_profile("--preview-profile", &args.preview_profile)?;
+            p.packet.isa = isa;
+            p
+        },
         profile,
         size: args.size,
         out_dir: args.out_dir.clone(),

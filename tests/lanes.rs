@@ -159,6 +159,11 @@ fn a_bad_instruction_set_is_an_input_error_naming_its_source() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--isa") && err.contains("sse9"), "{err}");
+    // the viewer too, before any window opens
+    let out = run(&["view", "--frames", "1", "--isa", "sse9"], None);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--isa") && err.contains("sse9"), "{err}");
     let out = run(&["bench-trace", "no-such.obj"], Some("neon"));
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
