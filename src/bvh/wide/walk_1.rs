@@ -356,7 +356,8 @@ impl Bvh {
         )
     }
 
-    /// The tree part of [`Bvh::occluded_1`], the permutation fixed as in `walk_1`.
+    /// The tree part of [`Bvh::occluded_1`], the permutation fixed as in `walk_1`:
+    /// [`Bvh::occluded_step_1`] until the walk ends.
     #[inline(always)]
     fn occluded_walk_1<T: TriangleKernel, const KZ: usize>(
         &self,
@@ -364,26 +365,13 @@ impl Bvh {
         t_max: f32,
         steps: &mut Steps,
     ) -> bool {
-        let w = &self.wide;
-        let mut stack = Stack::<u32, WIDE_STACK>::new();
-        stack.push(0);
-        while let Some(ni) = stack.pop() {
-            let node: &WideNode = &w.nodes[ni as usize];
-            steps.boxes += 1;
-            let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
-            w.prefetch_children(node, bits, false);
-            while bits != 0 {
-                let s = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let child = node.get(s);
-                if child.slot.is_interior() {
-                    stack.push(child.child);
-                } else if self.leaf_occluded_1::<T, KZ>(child, wr, t_max, steps) {
-                    return true;
-                }
+        let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
+        stack.push(SlotRef::ROOT);
+        loop {
+            if let Some(blocked) = self.occluded_step_1::<T, KZ>(wr, &mut stack, t_max, steps) {
+                return blocked;
             }
         }
-        false
     }
 
     /// The tree part of [`Bvh::occluded_1`] for up to sixteen rays at once (bit k of the
@@ -409,7 +397,7 @@ impl Bvh {
         rays: &[Ray1],
         t_max: &[f32],
         steps: &mut Steps,
-        stacks: [&mut Stack<u32, WIDE_STACK>; N],
+        stacks: [&mut Stack<SlotRef, WIDE_STACK>; N],
     ) -> u32 {
         assert!(rays.len() <= N && rays.len() == t_max.len(), "up to N rays");
         if self.wide.nodes.is_empty() || rays.is_empty() {
@@ -421,47 +409,60 @@ impl Bvh {
         let live = live_walks(rays);
         let mut blocked = 0;
         for k in (0..N).filter(|k| live >> k & 1 == 1) {
-            stacks[k].push(0);
+            stacks[k].push(SlotRef::ROOT);
         }
         in_turn(live, |k| {
-            let end = self.occluded_step_1(&walks[k], stacks[k], t_max[k], steps);
+            let (wr, stack) = (&walks[k], &mut *stacks[k]);
+            let end = with_const!(
+                wr.r.kz,
+                [0, 1, 2],
+                self.occluded_step_1::<T>(wr, stack, t_max[k], steps)
+            );
             blocked |= ((end == Some(true)) as u32) << k;
             end.is_none()
         });
         blocked
     }
 
-    /// One step of `occluded_walk_1`: the node on top of `stack`, its leaves tested at
-    /// once and its inner children pushed. `Some(answer)` when the walk has ended.
+    /// One step of the any-hit walk, the entry on top of `stack`: a node, whose hit
+    /// children are pushed, its leaves last (tested next: when walks are stepped in
+    /// turn, after a step of every other walk, time for their prefetch to land), or a
+    /// leaf, tested. `Some(answer)` when the walk has ended.
     #[inline(always)]
-    fn occluded_step_1<T: TriangleKernel>(
+    fn occluded_step_1<T: TriangleKernel, const KZ: usize>(
         &self,
         wr: &WideRay<T>,
-        stack: &mut Stack<u32, WIDE_STACK>,
+        stack: &mut Stack<SlotRef, WIDE_STACK>,
         t_max: f32,
         steps: &mut Steps,
     ) -> Option<bool> {
         let w = &self.wide;
-        let Some(ni) = stack.pop() else {
+        let Some(cur) = stack.pop() else {
             return Some(false);
         };
-        let node: &WideNode = &w.nodes[ni as usize];
-        steps.boxes += 1;
-        let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
-        w.prefetch_children(node, bits, false);
-        while bits != 0 {
-            let s = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let child = node.get(s);
-            if child.slot.is_interior() {
-                stack.push(child.child);
-            } else if with_const!(
-                wr.r.kz,
-                [0, 1, 2],
-                self.leaf_occluded_1::<T>(child, wr, t_max, steps)
-            ) {
-                return Some(true);
+        if cur.slot.is_interior() {
+            let node: &WideNode = &w.nodes[cur.child as usize];
+            steps.boxes += 1;
+            let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
+            w.prefetch_children(node, bits, false);
+            let mut leaves = 0u32;
+            while bits != 0 {
+                let s = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let child = node.get(s);
+                if child.slot.is_interior() {
+                    stack.push(child);
+                } else {
+                    leaves |= 1 << s;
+                }
             }
+            while leaves != 0 {
+                let s = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                stack.push(node.get(s));
+            }
+        } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
+            return Some(true);
         }
         stack.is_empty().then_some(false)
     }
