@@ -79,6 +79,44 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
     assert_eq!(s8, s16, "incoherent: 8 lanes vs 16");
 }
 
+/// A 16-lane packet whose halves are each one coherent frustum but of different
+/// direction signs (a block across the image's centre column) goes half by half, each
+/// half as one frustum: the node tests of the 8-lane packets, not of 16 single rays.
+#[test]
+fn halves_of_different_signs_each_go_as_one_frustum() {
+    let Some(m16) = mode16() else {
+        return;
+    };
+    let bvh = Bvh::build(PrimSet::from_triangles(torus(120, 60)));
+    let (mut origin, mut dir) = (Vec::new(), Vec::new());
+    for row in 0..64 {
+        let y = (row as f32 - 32.0) * 0.004;
+        for sign in [1.0f32, -1.0] {
+            for i in 0..8 {
+                origin.push(Vec3::new(0.0, y, -4.0));
+                let x = sign * (0.0005 + 0.001 * i as f32);
+                dir.push(Vec3::new(x, 0.0, 1.0).normalize());
+            }
+        }
+    }
+    let rays = RaySet {
+        name: "centre column",
+        origin,
+        dir,
+    };
+    let n = rays.origin.len();
+    let (mut t8, mut t16) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let s8 = trace(&bvh, &rays, Mode::Packet8, &mut t8);
+    let s16 = trace(&bvh, &rays, m16, &mut t16);
+    assert!(
+        t8.iter().filter(|t| **t >= 0.0).count() > n / 2,
+        "the rays meet the torus"
+    );
+    let bits = |t: &[f32]| t.iter().map(|t| t.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&t8), bits(&t16));
+    assert_eq!(s8, s16, "centre column: node tests at 8 lanes vs 16");
+}
+
 #[test]
 fn sixteen_lanes_give_every_ray_what_eight_give_it_on_every_primitive_kind() {
     let Some(m16) = mode16() else {

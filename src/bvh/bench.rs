@@ -5,7 +5,7 @@
 //! shadow rays of each set (any hit, [`shadow_rays`]); build best of 3 and trace best
 //! of 5, reported in the Embree harness's fields for the packet path (mode=8: the
 //! 8-wide tree collapsed from the same BVH, as a frustum for packets whose lanes share
-//! their direction signs, lane by lane for the others), the binary packet path
+//! their direction signs, lane by lane for scattered ones), the binary packet path
 //! (mode=8b), the single-ray path (mode=1, the 8-wide tree) and the binary single-ray
 //! path (mode=1b); each line also gives the bytes per triangle of the trees and
 //! triangle arrays, and the process's peak memory so far.
@@ -143,7 +143,8 @@ pub enum Mode {
     /// `Bvh::intersect_1_binary`, one ray at a time through the binary tree (`mode=1b`).
     SingleBinary,
     /// `Bvh::intersect_x8`, 8 consecutive rays as one packet (the 8-wide tree: as a
-    /// frustum when the lanes share their direction signs, lane by lane otherwise).
+    /// frustum when the lanes share their direction signs and lie close, lane by lane
+    /// when scattered, `Bvh::intersect_x8` explains which).
     Packet8,
     /// `Bvh::intersect_x8_binary`, packets through the binary tree only (`mode=8b`).
     Packet8Binary,

@@ -6,10 +6,11 @@
 //! found to have it (`simd::Isa`): there each operation on [`F16`] is one AVX-512
 //! instruction. Node tests stay eight-wide (one per node for the whole packet);
 //! triangles are tested against sixteen lanes at once. Spheres and clipped quadrics,
-//! the floor and the unbounded quadrics, and packets whose lanes do not share their
-//! direction signs or spread too far for one frustum go through the 8-lane code, half
-//! by half. A lane gets what the 8-lane walks give it, bit for bit: the kernels are
-//! the same generic code (`tests/lanes.rs`).
+//! the floor and the unbounded quadrics, and packets just too spread for one frustum
+//! go through the 8-lane code, half by half; packets of mixed direction signs or
+//! scattered far past the frustum's limit step all sixteen lanes' single-ray walks in
+//! turn. A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
+//! same generic code (`tests/lanes.rs`).
 
 use super::walk_x8::{Frustum, LANES_SPREAD, WidePacket, finite_lanes, shared_octant};
 use super::{TriBlock, walk_x8};
@@ -175,7 +176,10 @@ impl Bvh {
                     Err(how_far) => Err(lanes && how_far > LANES_SPREAD),
                 }
             }
-            None => Err(lanes),
+            // halves of different signs, each of one octant (a block across the image's
+            // centre line): each half's own route; else the lanes' walks
+            None => Err(lanes
+                && !(0..2).all(|k| fin[k].none() || shared_octant(&r.halves[k], fin[k]).is_some())),
         };
         (half, fin, frustum)
     }

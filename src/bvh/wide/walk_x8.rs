@@ -50,9 +50,9 @@ pub const FRUSTUM_SPREAD: f32 = 0.015;
 
 /// Spread (as [`FRUSTUM_SPREAD`]) past which a packet's lanes take their own single-ray
 /// walks of the wide tree, stepped in turn, instead of the binary packet walk: lanes
-/// that far apart share few nodes (random shadow rays of one light: 4× faster lane by
-/// lane), while packets just past the frustum limit (a silhouette, a curved mirror)
-/// still share most of their paths (benches/README.md).
+/// that far apart share few nodes (random shadow rays of one light), while packets just
+/// past the frustum limit (a silhouette, a curved mirror) still share most of their
+/// paths (figures: benches/README.md).
 pub const LANES_SPREAD: f32 = 16.0 * FRUSTUM_SPREAD;
 
 /// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`):
@@ -79,8 +79,9 @@ impl Frustum {
     /// `Err(how far)` when the lanes are too far apart for one frustum to serve them:
     /// their directions more than `spread` radians from the first lane's (unit
     /// directions), or their origins spread over more than `spread` times `size` (the
-    /// tree's diagonal) on an axis; `how far` is the larger of the angle and the
-    /// origins' extent over `size`.
+    /// tree's diagonal) on an axis; `how far` is the larger of the angle's chord
+    /// (√(2 − 2 cos θ), the angle itself at these sizes) and the origins' extent over
+    /// `size`.
     #[inline(always)]
     pub(super) fn new<L: simd::Lanes>(
         o: [L; 3],
