@@ -343,6 +343,14 @@ fn nan_rays_never_hit() {
         (Vec3::new(f32::NAN, 0.0, 10.0), Vec3::NEG_Z),
         (Vec3::new(0.0, 0.0, 10.0), Vec3::new(f32::NAN, 0.0, -1.0)),
         (Vec3::splat(f32::NAN), Vec3::splat(f32::NAN)),
+        (
+            Vec3::new(0.0, 0.0, 10.0),
+            Vec3::new(f32::INFINITY, 0.0, -1.0),
+        ),
+        (
+            Vec3::new(0.0, 0.0, 10.0),
+            Vec3::new(0.0, f32::NEG_INFINITY, -1.0),
+        ),
     ] {
         let r = Ray1::new(o, d);
         let h = closest(&bvh, &r, f32::INFINITY, true, &mut steps);

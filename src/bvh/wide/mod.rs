@@ -12,7 +12,8 @@
 //! binary walks report.
 //!
 //! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
-//! non-finite origin or direction skips the tree), exact ties as `PrimSet::record_1`,
+//! non-finite origin or 1/d skips the tree; one with an infinite direction walks it and
+//! meets nothing, `tests/wide_bvh.rs`), exact ties as `PrimSet::record_1`,
 //! the unbounded quadrics and the floor after the tree. Step counters: `boxes` counts
 //! wide node tests, `prims` the primitives of the leaves reached (real triangles, not
 //! padding lanes), `quadrics` the quadric tests.
