@@ -103,6 +103,23 @@ fn fold_lanes(v: f32x8, m: Mask8, empty: f32, op: fn(f32, f32) -> f32) -> f32 {
     op(op(m4[0], m4[2]), op(m4[1], m4[3]))
 }
 
+/// The active lanes of `H` packets as (packet, lane) in order, and their count (at most
+/// `N` = 8·H).
+#[inline(always)]
+fn lanes_of<const H: usize, const N: usize>(active: [Mask8; H]) -> ([(usize, usize); N], usize) {
+    let mut at = [(0, 0); N];
+    let mut n = 0;
+    for (k, m) in active.iter().enumerate() {
+        let mut bits = m.bits();
+        while bits != 0 {
+            at[n] = (k, bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+            n += 1;
+        }
+    }
+    (at, n)
+}
+
 /// Trees of at least this many wide nodes trace the lanes of an incoherent packet
 /// (mixed direction signs) one by one through the wide single-ray walk instead of
 /// walking the binary tree as a packet, which would fetch the nodes of eight unrelated
@@ -127,6 +144,15 @@ impl Bvh {
         steps: &mut Steps,
     ) {
         self.intersect_x8_spread::<T>(r, active, self.frustum_spread(), hit, steps);
+    }
+
+    /// Whether lanes `how_far` apart (as [`Frustum::new`](super::wide::walk_x8) measures
+    /// them; ∞ for mixed direction signs) take their own single-ray walks of the wide
+    /// tree stepped in turn: past [`LANES_SPREAD`], in a tree of at least
+    /// [`LANES_MIN_NODES`] wide nodes.
+    #[inline]
+    pub(crate) fn lane_walks(&self, how_far: f32) -> bool {
+        how_far > LANES_SPREAD && self.wide.nodes.len() >= LANES_MIN_NODES
     }
 
     /// The coherence limit of the wide packet walk in this tree: [`FRUSTUM_SPREAD`], or
@@ -157,17 +183,17 @@ impl Bvh {
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
-            let scattered = match shared_octant(r, act) {
+            let how_far = match shared_octant(r, act) {
                 Some(oct) => match self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) {
                     Ok(()) => {
                         self.intersect_beside_x8::<T>(r, active, hit, steps);
                         return;
                     }
-                    Err(how_far) => how_far > LANES_SPREAD,
+                    Err(how_far) => how_far,
                 },
-                None => true,
+                None => f32::INFINITY,
             };
-            if scattered && self.wide.nodes.len() >= LANES_MIN_NODES {
+            if self.lane_walks(how_far) {
                 self.intersect_x8_lanes::<T>(r, active, hit, steps);
                 return;
             }
@@ -185,41 +211,57 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        let (mut t, mut prim) = (hit.t.to_array(), hit.prim.to_array());
-        let (mut u, mut v) = (hit.u.to_array(), hit.v.to_array());
-        // the active lanes' walks of the wide tree stepped in turn, then each lane's
-        // unbounded quadrics and floor: `intersect_1`'s order per lane
-        if active.none() {
+        let mut h = [*hit];
+        self.intersect_lanes_of::<T, 1, 8>([r], [active], &mut h, steps);
+        *hit = h[0];
+    }
+
+    /// Each active lane of `H` packets (one, or the halves of a 16-lane packet; `N` =
+    /// 8·H) gets what [`Bvh::intersect_1`] gives it: the lanes' walks of the wide tree
+    /// stepped in turn, all `N` at once, then each lane's unbounded quadrics and floor
+    /// (`intersect_1`'s order).
+    #[inline(always)]
+    pub(crate) fn intersect_lanes_of<T: TriangleKernel, const H: usize, const N: usize>(
+        &self,
+        r: [&RayPacket8; H],
+        active: [Mask8; H],
+        hit: &mut [HitPacket8; H],
+        steps: &mut Steps,
+    ) {
+        let (at, n) = lanes_of::<H, N>(active);
+        if n == 0 {
             return;
         }
-        let mut lanes = [0usize; 8];
-        let mut n = 0;
-        for l in (0..8).filter(|&l| active.lane(l)) {
-            lanes[n] = l;
-            n += 1;
+        let mut t = (*hit).map(|h| h.t.to_array());
+        let mut prim = (*hit).map(|h| h.prim.to_array());
+        let mut u = (*hit).map(|h| h.u.to_array());
+        let mut v = (*hit).map(|h| h.v.to_array());
+        let rays: [Ray1; N] = std::array::from_fn(|i| {
+            let (k, l) = at[i.min(n - 1)];
+            r[k].ray(l)
+        });
+        let mut hits: [Hit1; N] = std::array::from_fn(|i| {
+            let (k, l) = at[i.min(n - 1)];
+            Hit1 {
+                t: t[k][l],
+                prim: prim[k][l],
+                u: u[k][l],
+                v: v[k][l],
+            }
+        });
+        self.intersect_wide_interleaved::<T>(&rays[..n], &mut hits[..n], steps);
+        for ((&(k, l), ray), h) in at[..n].iter().zip(&rays).zip(&mut hits) {
+            self.intersect_beside_1::<T>(ray, h, steps);
+            (t[k][l], prim[k][l], u[k][l], v[k][l]) = (h.t, h.prim, h.u, h.v);
         }
-        let mut rays = [r.ray(lanes[0]); 8];
-        let mut hits = [Hit1::new(0.0); 8];
-        for (k, &l) in lanes[..n].iter().enumerate() {
-            rays[k] = r.ray(l);
-            hits[k] = Hit1 {
-                t: t[l],
-                prim: prim[l],
-                u: u[l],
-                v: v[l],
+        for (k, h) in hit.iter_mut().enumerate() {
+            *h = HitPacket8 {
+                t: f32x8::new(t[k]),
+                prim: i32x8::new(prim[k]),
+                u: f32x8::new(u[k]),
+                v: f32x8::new(v[k]),
             };
         }
-        self.intersect_wide_interleaved::<T>(&rays[..n], &mut hits[..n], steps);
-        for ((&l, ray), h) in lanes[..n].iter().zip(&rays).zip(&mut hits) {
-            self.intersect_beside_1::<T>(ray, h, steps);
-            (t[l], prim[l], u[l], v[l]) = (h.t, h.prim, h.u, h.v);
-        }
-        *hit = HitPacket8 {
-            t: f32x8::new(t),
-            prim: i32x8::new(prim),
-            u: f32x8::new(u),
-            v: f32x8::new(v),
-        };
     }
 
     /// [`Bvh::intersect_x8`] through the binary tree only: every packet in trees too
@@ -386,16 +428,16 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         if spread < 0.0 || self.wide.nodes.is_empty() {
-            return self.occluded_x8_with::<T>(r, active, t_max, None, false, steps);
+            return self.occluded_x8_with::<T>(r, active, t_max, None, steps);
         }
-        let lanes = self.wide.nodes.len() >= LANES_MIN_NODES;
         match shared_octant(r, active & finite_lanes(r)) {
             Some(octant) => {
-                let wide = Some((octant, spread));
-                self.occluded_x8_with::<T>(r, active, t_max, wide, lanes, steps)
+                self.occluded_x8_with::<T>(r, active, t_max, Some((octant, spread)), steps)
             }
-            None if lanes => self.occluded_x8_lanes::<T>(r, active, t_max, steps),
-            None => self.occluded_x8_with::<T>(r, active, t_max, None, false, steps),
+            None if self.lane_walks(f32::INFINITY) => {
+                self.occluded_x8_lanes::<T>(r, active, t_max, steps)
+            }
+            None => self.occluded_x8_with::<T>(r, active, t_max, None, steps),
         }
     }
 
@@ -409,43 +451,54 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        // each lane's floor and unbounded quadrics first (`occluded_1`'s order), then
-        // the walks of the lanes left
-        let tm = t_max.to_array();
-        let beside = (0..8)
-            .filter(|&l| active.lane(l) && self.occluded_beside_1::<T>(&r.ray(l), tm[l], steps))
-            .fold(0, |m, l| m | 1 << l);
-        let beside = Mask8::from_bits(beside);
-        beside | self.occluded_wide_lanes::<T>(r, active.and_not(beside), t_max, steps)
+        self.occluded_lanes_of::<T, 1, 8>([r], [active], [t_max], true, steps)[0]
     }
 
-    /// The lanes of `active` blocked in the wide tree (the tree part of
-    /// [`Bvh::occluded_1`] per lane), the lanes' walks stepped in turn.
-    fn occluded_wide_lanes<T: TriangleKernel>(
+    /// The active lanes of `H` packets (one, or the halves of a 16-lane packet; `N` =
+    /// 8·H) blocked, each what [`Bvh::occluded_1`] answers for it: with `beside`, its
+    /// floor and unbounded quadrics first (`occluded_1`'s order; without, the caller
+    /// has tested them), then the walks of the lanes left, all `N` stepped in turn.
+    #[inline(always)]
+    pub(crate) fn occluded_lanes_of<T: TriangleKernel, const H: usize, const N: usize>(
         &self,
-        r: &RayPacket8,
-        active: Mask8,
-        t_max: f32x8,
+        r: [&RayPacket8; H],
+        active: [Mask8; H],
+        t_max: [f32x8; H],
+        beside: bool,
         steps: &mut Steps,
-    ) -> Mask8 {
-        let tm = t_max.to_array();
-        let mut lanes = [0usize; 8];
-        let mut n = 0;
-        for l in (0..8).filter(|&l| active.lane(l)) {
-            lanes[n] = l;
-            n += 1;
+    ) -> [Mask8; H] {
+        let tm = t_max.map(|t| t.to_array());
+        let mut blocked = [0u32; H];
+        let mut left = active;
+        if beside {
+            for (k, m) in left.iter_mut().enumerate() {
+                let mut bits = m.bits();
+                while bits != 0 {
+                    let l = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if self.occluded_beside_1::<T>(&r[k].ray(l), tm[k][l], steps) {
+                        blocked[k] |= 1 << l;
+                    }
+                }
+                *m = m.and_not(Mask8::from_bits(blocked[k]));
+            }
         }
-        if n == 0 {
-            return Mask8::NONE;
+        let (at, n) = lanes_of::<H, N>(left);
+        if n > 0 {
+            let rays: [Ray1; N] = std::array::from_fn(|i| {
+                let (k, l) = at[i.min(n - 1)];
+                r[k].ray(l)
+            });
+            let t: [f32; N] = std::array::from_fn(|i| {
+                let (k, l) = at[i.min(n - 1)];
+                tm[k][l]
+            });
+            let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
+            for (i, &(k, l)) in at[..n].iter().enumerate() {
+                blocked[k] |= (wide >> i & 1) << l;
+            }
         }
-        let rays: [Ray1; 8] = std::array::from_fn(|k| r.ray(lanes[k.min(n - 1)]));
-        let t: [f32; 8] = std::array::from_fn(|k| tm[lanes[k.min(n - 1)]]);
-        let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
-        let mut blocked = 0;
-        for (k, &l) in lanes[..n].iter().enumerate() {
-            blocked |= (wide >> k & 1) << l;
-        }
-        Mask8::from_bits(blocked)
+        blocked.map(Mask8::from_bits)
     }
 
     /// [`Bvh::occluded_x8`] through the binary tree only (the benches' `mode=8b`).
@@ -456,7 +509,7 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_x8_with::<T>(r, active, t_max, None, false, steps)
+        self.occluded_x8_with::<T>(r, active, t_max, None, steps)
     }
 
     /// The lanes of `active` not blocked by the floor or the unbounded quadrics (with
@@ -495,8 +548,8 @@ impl Bvh {
 
     /// The any-hit query: the list beside the tree, then the wide tree as one frustum
     /// when `wide_octant` (the lanes' direction signs, the spread limit) is given and
-    /// the packet is coherent enough, else the lanes' own wide walks when `lanes`, else
-    /// the binary tree as a packet.
+    /// the packet is coherent enough, else the lanes' own wide walks when they lie far
+    /// apart ([`Bvh::lane_walks`]), else the binary tree as a packet.
     #[inline(always)]
     fn occluded_x8_with<T: TriangleKernel>(
         &self,
@@ -504,7 +557,6 @@ impl Bvh {
         active: Mask8,
         t_max: f32x8,
         wide_octant: Option<(u32, f32)>,
-        lanes: bool,
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
@@ -512,12 +564,14 @@ impl Bvh {
             Some((octant, spread)) if left.any() => {
                 self.occluded_x8_wide::<T>(r, left & finite_lanes(r), octant, spread, t_max, steps)
             }
+            // (not tried: the binary walk)
             _ => Err(0.0),
         };
         if let Ok(blocked) = frustum {
             left = left.and_not(blocked);
-        } else if lanes && frustum.is_err_and(|how_far| how_far > LANES_SPREAD) {
-            left = left.and_not(self.occluded_wide_lanes::<T>(r, left, t_max, steps));
+        } else if frustum.is_err_and(|how_far| self.lane_walks(how_far)) {
+            let [blocked] = self.occluded_lanes_of::<T, 1, 8>([r], [left], [t_max], false, steps);
+            left = left.and_not(blocked);
         } else if !self.nodes.is_empty() && left.any() {
             let mut stack = Stack::<u32, STACK_SIZE>::new();
             stack.push(0);

@@ -12,19 +12,16 @@
 //! turn. A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
 //! same generic code (`tests/lanes.rs`).
 
-use super::walk_x8::{Frustum, LANES_SPREAD, WidePacket, finite_lanes, shared_octant};
+use super::walk_x8::{Frustum, WidePacket, finite_lanes, shared_octant};
 use super::{TriBlock, walk_x8};
-use crate::bvh::traverse_x8::LANES_MIN_NODES;
 use crate::bvh::{Bvh, Steps};
-use crate::geometry::Hit1;
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, PrimSet};
 use crate::math::packet::Mask8;
-use crate::math::packet::{HitPacket8, Ray1};
 use crate::simd::LaneMask;
 use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask, split};
 use crate::simd::w16::{F16, M16};
-use wide::{f32x8, i32x8};
+use wide::f32x8;
 
 impl WidePacket for RayPacket16 {
     type L = F16;
@@ -155,9 +152,8 @@ impl Bvh {
     /// The halves of `active`, their finite lanes, and when one frustum serves all the
     /// finite lanes (a tree big enough, shared direction signs, within the spread
     /// limit) their direction signs and that frustum; else `Err(scattered)`: true when
-    /// the lanes' own walks serve them best (mixed signs or spread past
-    /// [`LANES_SPREAD`], in a tree of at least [`LANES_MIN_NODES`] wide nodes), false
-    /// when the halves go at 8 lanes.
+    /// the lanes' own walks serve them best (mixed signs or spread far apart:
+    /// [`Bvh::lane_walks`]), false when the halves go at 8 lanes.
     #[inline(always)]
     fn frustum_x16(&self, r: &RayPacket16, active: M16) -> ([Mask8; 2], [Mask8; 2], Route16) {
         let spread = self.frustum_spread();
@@ -167,26 +163,24 @@ impl Bvh {
         if spread < 0.0 || self.wide.nodes.is_empty() || act.none() {
             return (half, fin, Err(false));
         }
-        let lanes = self.wide.nodes.len() >= LANES_MIN_NODES;
         let frustum = match octant_of(r, fin) {
             Some(oct) => {
                 let [o, d, inv] = r.rays();
                 match Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
                     Ok(fr) => Ok((oct, fr)),
-                    Err(how_far) => Err(lanes && how_far > LANES_SPREAD),
+                    Err(how_far) => Err(self.lane_walks(how_far)),
                 }
             }
             // halves of different signs, each of one octant (a block across the image's
             // centre line): each half's own route; else the lanes' walks
-            None => Err(lanes
+            None => Err(self.lane_walks(f32::INFINITY)
                 && !(0..2).all(|k| fin[k].none() || shared_octant(&r.halves[k], fin[k]).is_some())),
         };
         (half, fin, frustum)
     }
 
-    /// [`Bvh::intersect_x16`] per lane: the wide walks of the active lanes of both
-    /// halves (`half`) stepped in turn, sixteen at once, then each lane's unbounded
-    /// quadrics and floor (as [`Bvh::intersect_x8_lanes`] per half).
+    /// [`Bvh::intersect_x16`] per lane: [`Bvh::intersect_lanes_of`] of both halves,
+    /// sixteen walks stepped in turn.
     #[inline(always)]
     fn intersect_x16_lanes<T: TriangleKernel>(
         &self,
@@ -195,51 +189,10 @@ impl Bvh {
         hit: &mut HitPacket16,
         steps: &mut Steps,
     ) {
-        let h = hit.halves();
-        let mut t = [h[0].t.to_array(), h[1].t.to_array()];
-        let mut prim = [h[0].prim.to_array(), h[1].prim.to_array()];
-        let mut u = [h[0].u.to_array(), h[1].u.to_array()];
-        let mut v = [h[0].v.to_array(), h[1].v.to_array()];
-        let mut at = [(0usize, 0usize); 16];
-        let mut n = 0;
-        for (k, m) in half.iter().enumerate() {
-            let mut bits = m.bits();
-            while bits != 0 {
-                at[n] = (k, bits.trailing_zeros() as usize);
-                bits &= bits - 1;
-                n += 1;
-            }
-        }
-        if n == 0 {
-            return;
-        }
-        let rays: [Ray1; 16] = std::array::from_fn(|i| {
-            let (k, l) = at[i.min(n - 1)];
-            r.halves[k].ray(l)
-        });
-        let mut hits: [Hit1; 16] = std::array::from_fn(|i| {
-            let (k, l) = at[i.min(n - 1)];
-            Hit1 {
-                t: t[k][l],
-                prim: prim[k][l],
-                u: u[k][l],
-                v: v[k][l],
-            }
-        });
-        self.intersect_wide_interleaved::<T>(&rays[..n], &mut hits[..n], steps);
-        for i in 0..n {
-            let (k, l) = at[i];
-            self.intersect_beside_1::<T>(&rays[i], &mut hits[i], steps);
-            let hi = &hits[i];
-            (t[k][l], prim[k][l], u[k][l], v[k][l]) = (hi.t, hi.prim, hi.u, hi.v);
-        }
-        let half_hit = |k: usize| HitPacket8 {
-            t: f32x8::new(t[k]),
-            prim: i32x8::new(prim[k]),
-            u: f32x8::new(u[k]),
-            v: f32x8::new(v[k]),
-        };
-        *hit = HitPacket16::from_halves([half_hit(0), half_hit(1)]);
+        let mut h = hit.halves();
+        let halves = [&r.halves[0], &r.halves[1]];
+        self.intersect_lanes_of::<T, 2, 16>(halves, half, &mut h, steps);
+        *hit = HitPacket16::from_halves(h);
     }
 
     #[inline(always)]
@@ -299,9 +252,8 @@ impl Bvh {
         cat_mask(blocked[0], blocked[1])
     }
 
-    /// [`Bvh::occluded_x16`] per lane: each lane's floor and unbounded quadrics, then
-    /// the wide walks of the lanes left in both halves stepped in turn, sixteen at once
-    /// (as [`Bvh::occluded_x8_lanes`] per half).
+    /// [`Bvh::occluded_x16`] per lane: [`Bvh::occluded_lanes_of`] of both halves,
+    /// sixteen walks stepped in turn.
     #[inline(always)]
     fn occluded_x16_lanes<T: TriangleKernel>(
         &self,
@@ -310,38 +262,9 @@ impl Bvh {
         t_max: [f32x8; 2],
         steps: &mut Steps,
     ) -> M16 {
-        let tm = [t_max[0].to_array(), t_max[1].to_array()];
-        let mut blocked = [0u32; 2];
-        let mut at = [(0usize, 0usize); 16];
-        let mut n = 0;
-        for (k, m) in half.iter().enumerate() {
-            let mut bits = m.bits();
-            while bits != 0 {
-                let l = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if self.occluded_beside_1::<T>(&r.halves[k].ray(l), tm[k][l], steps) {
-                    blocked[k] |= 1 << l;
-                } else {
-                    at[n] = (k, l);
-                    n += 1;
-                }
-            }
-        }
-        if n > 0 {
-            let rays: [Ray1; 16] = std::array::from_fn(|i| {
-                let (k, l) = at[i.min(n - 1)];
-                r.halves[k].ray(l)
-            });
-            let t: [f32; 16] = std::array::from_fn(|i| {
-                let (k, l) = at[i.min(n - 1)];
-                tm[k][l]
-            });
-            let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
-            for (i, &(k, l)) in at[..n].iter().enumerate() {
-                blocked[k] |= (wide >> i & 1) << l;
-            }
-        }
-        cat_mask(Mask8::from_bits(blocked[0]), Mask8::from_bits(blocked[1]))
+        let halves = [&r.halves[0], &r.halves[1]];
+        let [b0, b1] = self.occluded_lanes_of::<T, 2, 16>(halves, half, t_max, true, steps);
+        cat_mask(b0, b1)
     }
 
     #[inline(always)]
