@@ -560,16 +560,23 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
+        // `None`: the frustum walk not tried (the binary walk)
         let frustum = match wide_octant {
-            Some((octant, spread)) if left.any() => {
-                self.occluded_x8_wide::<T>(r, left & finite_lanes(r), octant, spread, t_max, steps)
-            }
-            // (not tried: the binary walk)
-            _ => Err(0.0),
+            Some((octant, spread)) if left.any() => Some(self.occluded_x8_wide::<T>(
+                r,
+                left & finite_lanes(r),
+                octant,
+                spread,
+                t_max,
+                steps,
+            )),
+            _ => None,
         };
-        if let Ok(blocked) = frustum {
+        if let Some(Ok(blocked)) = frustum {
             left = left.and_not(blocked);
-        } else if frustum.is_err_and(|how_far| self.lane_walks(how_far)) {
+        } else if let Some(Err(how_far)) = frustum
+            && self.lane_walks(how_far)
+        {
             let [blocked] = self.occluded_lanes_of::<T, 1, 8>([r], [left], [t_max], false, steps);
             left = left.and_not(blocked);
         } else if !self.nodes.is_empty() && left.any() {
