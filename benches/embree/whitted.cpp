@@ -8,12 +8,14 @@
 // images. Defaults: the assignment's camera, the scene's `pixels` square.
 //
 // Supported objects: `triangle` and `mesh PATH.obj`; point lights and spotlights. Spheres, quadrics and prisms
-// are rejected (exit 2). Build: g++ -O2 -march=native -std=c++17 whitted.cpp -o whitted -lembree3 -lpthread
+// are rejected (exit 2). Build: g++ -O3 -march=native -fno-math-errno -std=c++17 whitted.cpp -o whitted -lembree3
+// -lpthread (-O3 and no errno: the per-lane shading loops vectorize).
 //
 // Tracing: camera rays in 4 x 4 pixel blocks with rtcIntersect16, shadow rays per light with rtcOccluded16 (the
 // lanes whose light is in front of the surface), mirror rays with rtcIntersect16 up to the recursion level (level
-// N gives N - 1 bounces). Embree holds the triangles; the floor (z = 0, |x|, |y| <= 500) is a plane tested beside
-// it: it shortens a closest-hit ray's tfar before Embree traverses, and blocks shadow rays before Embree is asked.
+// N gives N - 1 bounces); the camera rays and their shadow rays go with Embree's coherent flag, the rest without.
+// Embree holds the triangles; the floor (z = 0, |x|, |y| <= 500) is a plane tested beside it: it shortens a
+// closest-hit ray's tfar before Embree traverses, and blocks shadow rays before Embree is asked.
 // Secondary rays start at P + eps N (N the geometric normal turned to face the incoming ray, so both shadow rays
 // toward a light in front and mirror rays leave on that side), eps = 1e-4 max(1, |P|_inf).
 //
@@ -350,7 +352,8 @@ static Camera make_camera(V3 eye, V3 target, V3 up, double fov_deg, unsigned w, 
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Rendering
+// Rendering. A block is 16 lanes in structure-of-arrays form; the per-lane loops have fixed trip counts and no
+// early exits (masks select instead), so the compiler vectorizes the shading as Embree vectorizes the traversal.
 
 static const Material FLOOR_MATERIAL = {1, 1, 1, 0.4f, 0.2f, 0.2f, 0.2f, 1};
 static const float FLOOR_HALF = 500.0f, TILE = 20.0f;
@@ -359,12 +362,36 @@ struct Counts {
   uint64_t primary = 0, shadow = 0, reflection = 0;
 };
 
-// One level of a block's mirror chain: each lane's local colour and the weight of the next level's colour.
+// One level of a block's mirror chain: each lane's local colour, the weight of the next level's colour, and
+// whether the lane hit anything at this level (-1) or not (0).
 struct Level {
   float c[3][16];
   float kr[16];
-  bool hit[16];
+  int hit[16];
 };
+
+// Whether the ray meets the floor square at a distance t in (0, tmax); t is set either way.
+static inline bool floor_hit(float ox, float oy, float oz, float dx, float dy, float dz, float tmax, float& t) {
+  t = -oz / dz;  // +-inf or NaN when dz = 0: then the tests below fail
+  float x = ox + t * dx, y = oy + t * dy;
+  return (t > 0) & (t < tmax) & (std::fabs(x) <= FLOOR_HALF) & (std::fabs(y) <= FLOOR_HALF);
+}
+
+// x[k]^e[k] for x >= 0 and whole e below 2^bits, by squaring, 16 lanes: x^0 = 1, 0^e = 0 for e > 0 (octaray's
+// rule).
+static inline void power_whole(const float* x, const float* e, unsigned bits, float* out) {
+  float acc[16], sq[16], rest[16];
+  for (int k = 0; k < 16; k++) acc[k] = 1, sq[k] = x[k], rest[k] = e[k];
+  for (unsigned b = 0; b < bits; b++) {
+    for (int k = 0; k < 16; k++) {
+      if (b > 0) sq[k] *= sq[k];
+      float half = std::floor(rest[k] * 0.5f);
+      acc[k] = (rest[k] > half + half) ? acc[k] * sq[k] : acc[k];
+      rest[k] = half;
+    }
+  }
+  for (int k = 0; k < 16; k++) out[k] = acc[k];
+}
 
 class Renderer {
  public:
@@ -373,8 +400,14 @@ class Renderer {
     rtcInitIntersectContext(&coherent_);
     coherent_.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     rtcInitIntersectContext(&incoherent_);
-    whole_shine_ = std::all_of(sc.objects.begin(), sc.objects.end(),
-                               [](const Object& o) { return o.m.shine == std::floor(o.m.shine) && o.m.shine < 256; });
+    // every shininess (the floor's 1 too) a whole number below 256: powers by squaring, else powf
+    float top = 1;
+    whole_shine_ = true;
+    for (const Object& o : sc.objects) {
+      whole_shine_ = whole_shine_ && o.m.shine == std::floor(o.m.shine) && o.m.shine < 256;
+      top = std::max(top, o.m.shine);
+    }
+    shine_bits_ = whole_shine_ ? unsigned(std::floor(std::log2(top))) + 1 : 0;
   }
 
   // Renders the 4 x 4 block at (bx, by) into rgb (width x height x 3 bytes, top row first).
@@ -383,214 +416,189 @@ class Renderer {
   Counts counts;
 
  private:
-  float floor_t(float ox, float oy, float oz, float dx, float dy, float dz, float tmax) const;
-  float power(float x, float e) const;
-
   RTCScene scene_;
   const Scene& sc_;
   std::vector<int> geom_object_;  // Embree geometry ID -> object index (-1: the loose triangles, by primID)
   RTCIntersectContext coherent_, incoherent_;
   bool whole_shine_;
+  unsigned shine_bits_;
   std::vector<Level> chain_;
 };
-
-// Distance along the ray to the floor square, or +inf: nearer than tmax, beyond 0.
-inline float Renderer::floor_t(float ox, float oy, float oz, float dx, float dy, float dz, float tmax) const {
-  if (dz == 0) return INFINITY;
-  float t = -oz / dz;
-  if (!(t > 0 && t < tmax)) return INFINITY;
-  float x = ox + t * dx, y = oy + t * dy;
-  return (std::fabs(x) <= FLOOR_HALF && std::fabs(y) <= FLOOR_HALF) ? t : INFINITY;
-}
-
-// x^e with x^0 = 1 and 0^e = 0 (e > 0), as octaray's rule; whole exponents by squaring.
-inline float Renderer::power(float x, float e) const {
-  if (e == 0) return 1;
-  if (x <= 0) return 0;
-  if (!whole_shine_ || e == 1) return e == 1 ? x : std::pow(x, e);
-  unsigned k = unsigned(e);
-  float acc = 1, sq = x;
-  while (k) {
-    if (k & 1) acc *= sq;
-    sq *= sq;
-    k >>= 1;
-  }
-  return acc;
-}
 
 void Renderer::block(const Camera& cam, unsigned bx, unsigned by, unsigned w, unsigned h, uint8_t* rgb) {
   alignas(64) RTCRayHit16 rh;
   alignas(64) RTCRay16 sr;
   alignas(64) int valid[16], svalid[16];
-  // per lane: the camera ray in double (its floor hit is computed from it, exact at tile lines)
+  // the camera rays in double: their floor hits are recomputed from them (exact tiles at tile lines)
   double cdx[16], cdy[16], cdz[16];
   const float ex = float(cam.eye.x), ey = float(cam.eye.y), ez = float(cam.eye.z);
+  // (bitwise & and | on the lane conditions below: no branches, so the loops vectorize)
+  unsigned n_primary = 0;
   for (int k = 0; k < 16; k++) {
     unsigned i = bx + k % 4, j = by + k / 4;
-    valid[k] = (i < w && j < h) ? -1 : 0;
-    V3 d = normalize(cam.top_left + cam.du * double(i) + cam.dv * double(j) - cam.eye);
-    cdx[k] = d.x, cdy[k] = d.y, cdz[k] = d.z;
+    valid[k] = ((i < w) & (j < h)) ? -1 : 0;
+    n_primary += valid[k] & 1;
+    double x = cam.top_left.x + cam.du.x * i + cam.dv.x * j - cam.eye.x;
+    double y = cam.top_left.y + cam.du.y * i + cam.dv.y * j - cam.eye.y;
+    double z = cam.top_left.z + cam.du.z * i + cam.dv.z * j - cam.eye.z;
+    double inv = 1.0 / std::sqrt(x * x + y * y + z * z);
+    cdx[k] = x * inv, cdy[k] = y * inv, cdz[k] = z * inv;
     rh.ray.org_x[k] = ex, rh.ray.org_y[k] = ey, rh.ray.org_z[k] = ez;
-    rh.ray.dir_x[k] = float(d.x), rh.ray.dir_y[k] = float(d.y), rh.ray.dir_z[k] = float(d.z);
-    if (valid[k]) counts.primary++;
+    rh.ray.dir_x[k] = float(cdx[k]), rh.ray.dir_y[k] = float(cdy[k]), rh.ray.dir_z[k] = float(cdz[k]);
   }
+  counts.primary += n_primary;
   const unsigned levels = std::max(1u, sc_.recursion_level);
   unsigned used = 0;
   for (unsigned level = 1;; level++) {
-    // closest hit: the floor first (it bounds the ray), then Embree's triangles before it
+    // closest hit: the floor bounds the ray, then Embree looks for triangles before it
     float ft[16];
     for (int k = 0; k < 16; k++) {
-      rh.ray.tnear[k] = 0;
-      rh.ray.time[k] = 0;
-      rh.ray.mask[k] = 0xFFFFFFFFu;
-      rh.ray.id[k] = k;
-      rh.ray.flags[k] = 0;
+      float t;
+      bool hit = floor_hit(rh.ray.org_x[k], rh.ray.org_y[k], rh.ray.org_z[k], rh.ray.dir_x[k], rh.ray.dir_y[k],
+                           rh.ray.dir_z[k], INFINITY, t);
+      ft[k] = hit ? t : INFINITY;
+      rh.ray.tnear[k] = 0, rh.ray.tfar[k] = ft[k], rh.ray.time[k] = 0;
+      rh.ray.mask[k] = 0xFFFFFFFFu, rh.ray.id[k] = k, rh.ray.flags[k] = 0;
       rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-      ft[k] = valid[k] ? floor_t(rh.ray.org_x[k], rh.ray.org_y[k], rh.ray.org_z[k], rh.ray.dir_x[k],
-                                 rh.ray.dir_y[k], rh.ray.dir_z[k], INFINITY)
-                       : INFINITY;
-      rh.ray.tfar[k] = ft[k];
     }
     rtcIntersect16(valid, scene_, level == 1 ? &coherent_ : &incoherent_, &rh);
 
     if (chain_.size() < level) chain_.resize(level);
     Level& L = chain_[level - 1];
     used = level;
-    // surface of each lane's hit: point, normal facing the ray, material
-    float px[16], py[16], pz[16], nx[16], ny[16], nz[16];
-    const Material* mat[16];
-    float col[3][16];
-    bool any = false;
+    // what each lane hit: its material, colour and geometric normal (lane by lane: table look-ups)
+    float cr[16], cg[16], cb[16], ka[16], kd[16], ks[16], shine[16], gx[16], gy[16], gz[16];
+    int any = 0;
     for (int k = 0; k < 16; k++) {
-      L.hit[k] = false;
-      if (!valid[k]) continue;
-      float dx = rh.ray.dir_x[k], dy = rh.ray.dir_y[k], dz = rh.ray.dir_z[k];
-      float t = rh.ray.tfar[k];
-      float gx, gy, gz;
       unsigned g = rh.hit.geomID[k];
-      if (g != RTC_INVALID_GEOMETRY_ID) {
+      bool tri = valid[k] && g != RTC_INVALID_GEOMETRY_ID;
+      bool flo = valid[k] && !tri && ft[k] < INFINITY;
+      L.hit[k] = (tri || flo) ? -1 : 0;
+      any |= L.hit[k];
+      const Material* m = &FLOOR_MATERIAL;
+      float tile = 1;
+      if (tri) {
         int o = geom_object_[g];
-        if (o < 0) o = int(sc_.loose.object[rh.hit.primID[k]]);
-        mat[k] = &sc_.objects[o].m;
-        col[0][k] = mat[k]->r, col[1][k] = mat[k]->g, col[2][k] = mat[k]->b;
-        gx = rh.hit.Ng_x[k], gy = rh.hit.Ng_y[k], gz = rh.hit.Ng_z[k];
-        px[k] = rh.ray.org_x[k] + t * dx, py[k] = rh.ray.org_y[k] + t * dy, pz[k] = rh.ray.org_z[k] + t * dz;
-      } else if (ft[k] < INFINITY) {
-        mat[k] = &FLOOR_MATERIAL;
-        gx = 0, gy = 0, gz = 1;
-        px[k] = rh.ray.org_x[k] + t * dx, py[k] = rh.ray.org_y[k] + t * dy, pz[k] = 0;
-        // the tile: from the double camera ray at level 1 (exact at tile lines), else from the f32 point
-        double x = px[k], y = py[k];
-        if (level == 1) {
-          double tc = -cam.eye.z / cdz[k];
-          x = cam.eye.x + tc * cdx[k], y = cam.eye.y + tc * cdy[k];
-        }
-        long ti = long(std::floor((x + FLOOR_HALF) / TILE)), tj = long(std::floor((y + FLOOR_HALF) / TILE));
-        float c = ((ti + tj) % 2 == 0) ? 1.0f : 0.0f;
-        col[0][k] = col[1][k] = col[2][k] = c;
+        m = &sc_.objects[o >= 0 ? o : int(sc_.loose.object[rh.hit.primID[k]])].m;
+        gx[k] = rh.hit.Ng_x[k], gy[k] = rh.hit.Ng_y[k], gz[k] = rh.hit.Ng_z[k];
       } else {
-        valid[k] = 0;  // missed: black, and no further rays
-        continue;
+        gx[k] = 0, gy[k] = 0, gz[k] = 1;
+        if (flo) {
+          // the tile: from the double camera ray at level 1, else from the f32 hit point
+          double x = rh.ray.org_x[k] + ft[k] * rh.ray.dir_x[k], y = rh.ray.org_y[k] + ft[k] * rh.ray.dir_y[k];
+          if (level == 1) {
+            double tc = -cam.eye.z / cdz[k];
+            x = cam.eye.x + tc * cdx[k], y = cam.eye.y + tc * cdy[k];
+          }
+          long ti = long(std::floor((x + FLOOR_HALF) / TILE)), tj = long(std::floor((y + FLOOR_HALF) / TILE));
+          tile = ((ti + tj) % 2 == 0) ? 1.0f : 0.0f;
+        }
       }
-      float len = std::sqrt(gx * gx + gy * gy + gz * gz);
-      if (!(len > 0)) {
-        valid[k] = 0;
-        continue;
-      }
-      float s = (gx * dx + gy * dy + gz * dz) > 0 ? -1.0f / len : 1.0f / len;
-      nx[k] = gx * s, ny[k] = gy * s, nz[k] = gz * s;
-      L.hit[k] = true;
-      any = true;
-      for (int c = 0; c < 3; c++) L.c[c][k] = col[c][k] * mat[k]->ka;
-      L.kr[k] = mat[k]->kr;
+      cr[k] = m->r * tile, cg[k] = m->g * tile, cb[k] = m->b * tile;
+      ka[k] = m->ka, kd[k] = m->kd, ks[k] = m->ks, L.kr[k] = m->kr, shine[k] = m->shine;
     }
     if (!any) break;
 
-    // the origin of every secondary ray of this level: just off the surface, on the side the ray came from
-    float sx[16], sy[16], sz[16];
+    // the hit point, the unit normal facing the ray, the ambient term, and the origin of this level's secondary
+    // rays: off the surface by eps on the side the ray came from
+    float px[16], py[16], pz[16], nx[16], ny[16], nz[16], sx[16], sy[16], sz[16];
     for (int k = 0; k < 16; k++) {
-      if (!L.hit[k]) continue;
-      float eps = 1e-4f * std::max({1.0f, std::fabs(px[k]), std::fabs(py[k]), std::fabs(pz[k])});
+      float t = rh.ray.tfar[k], dx = rh.ray.dir_x[k], dy = rh.ray.dir_y[k], dz = rh.ray.dir_z[k];
+      px[k] = rh.ray.org_x[k] + t * dx, py[k] = rh.ray.org_y[k] + t * dy, pz[k] = rh.ray.org_z[k] + t * dz;
+      float inv = 1.0f / std::sqrt(gx[k] * gx[k] + gy[k] * gy[k] + gz[k] * gz[k]);
+      float s = (gx[k] * dx + gy[k] * dy + gz[k] * dz) > 0 ? -inv : inv;
+      nx[k] = gx[k] * s, ny[k] = gy[k] * s, nz[k] = gz[k] * s;
+      float eps = 1e-4f * std::max(std::max(1.0f, std::fabs(px[k])), std::max(std::fabs(py[k]), std::fabs(pz[k])));
       sx[k] = px[k] + eps * nx[k], sy[k] = py[k] + eps * ny[k], sz[k] = pz[k] + eps * nz[k];
+      L.c[0][k] = cr[k] * ka[k], L.c[1][k] = cg[k] * ka[k], L.c[2][k] = cb[k] * ka[k];
     }
 
-    // each light: the lanes it can reach (cone, in front) get a shadow ray; unblocked ones add Phong terms
+    // each light: the lanes it can reach (inside its cone, in front of the surface) get a shadow ray; the floor
+    // is tested here, the triangles by Embree; unblocked lanes add the diffuse and specular terms
     for (const Light& lt : sc_.lights) {
+      const float lpx = float(lt.pos.x), lpy = float(lt.pos.y), lpz = float(lt.pos.z);
+      const float ax = float(lt.axis.x), ay = float(lt.axis.y), az = float(lt.axis.z), cc = float(lt.cos_cut);
       float lx[16], ly[16], lz[16], ndl[16];
-      bool need = false;
+      int need = 0;
+      unsigned n_shadow = 0;
       for (int k = 0; k < 16; k++) {
-        svalid[k] = 0;
-        if (!L.hit[k]) continue;
-        double wx = px[k] - lt.pos.x, wy = py[k] - lt.pos.y, wz = pz[k] - lt.pos.z;
-        double dist = std::sqrt(wx * wx + wy * wy + wz * wz);
-        if (!(dist > 0)) continue;
-        if (lt.spot && (lt.axis.x * wx + lt.axis.y * wy + lt.axis.z * wz) < lt.cos_cut * dist) continue;
-        float inv = float(1.0 / dist);
-        lx[k] = float(-wx) * inv, ly[k] = float(-wy) * inv, lz[k] = float(-wz) * inv;
+        float wx = px[k] - lpx, wy = py[k] - lpy, wz = pz[k] - lpz;
+        float dist = std::sqrt(wx * wx + wy * wy + wz * wz);
+        bool in_cone = !lt.spot | (ax * wx + ay * wy + az * wz >= cc * dist);
+        float inv = 1.0f / dist;
+        lx[k] = -wx * inv, ly[k] = -wy * inv, lz[k] = -wz * inv;
         ndl[k] = nx[k] * lx[k] + ny[k] * ly[k] + nz[k] * lz[k];
-        if (!(ndl[k] > 0)) continue;
-        counts.shadow++;
-        // the shadow segment from the offset origin to the light; the floor is tested here, the rest by Embree
+        bool reach = (L.hit[k] != 0) & (dist > 0) & in_cone & (ndl[k] > 0);
+        n_shadow += reach;
         float ox = sx[k], oy = sy[k], oz = sz[k];
-        float vx = float(lt.pos.x) - ox, vy = float(lt.pos.y) - oy, vz = float(lt.pos.z) - oz;
+        float vx = lpx - ox, vy = lpy - oy, vz = lpz - oz;
         float seg = std::sqrt(vx * vx + vy * vy + vz * vz);
         float is = 1.0f / seg;
         vx *= is, vy *= is, vz *= is;
-        if (floor_t(ox, oy, oz, vx, vy, vz, seg) < INFINITY) continue;
+        float t;
+        bool floor_blocks = floor_hit(ox, oy, oz, vx, vy, vz, seg, t);
         sr.org_x[k] = ox, sr.org_y[k] = oy, sr.org_z[k] = oz;
         sr.dir_x[k] = vx, sr.dir_y[k] = vy, sr.dir_z[k] = vz;
         sr.tnear[k] = 0, sr.tfar[k] = seg, sr.time[k] = 0;
         sr.mask[k] = 0xFFFFFFFFu, sr.id[k] = k, sr.flags[k] = 0;
-        svalid[k] = -1;
-        need = true;
+        svalid[k] = (reach & !floor_blocks) ? -1 : 0;
+        need |= svalid[k];
       }
+      counts.shadow += n_shadow;
       if (!need) continue;
-      rtcOccluded16(svalid, scene_, &incoherent_, &sr);
+      rtcOccluded16(svalid, scene_, level == 1 ? &coherent_ : &incoherent_, &sr);
+      const float lr = float(lt.color.x), lg = float(lt.color.y), lb = float(lt.color.z);
+      float rv[16], spec[16];
       for (int k = 0; k < 16; k++) {
-        if (!svalid[k] || sr.tfar[k] < 0) continue;  // blocked: Embree sets tfar to -inf
-        const Material& m = *mat[k];
         // R = 2 (N.L) N - L against V = -d
         float rx = 2 * ndl[k] * nx[k] - lx[k], ry = 2 * ndl[k] * ny[k] - ly[k], rz = 2 * ndl[k] * nz[k] - lz[k];
-        float rv = -(rx * rh.ray.dir_x[k] + ry * rh.ray.dir_y[k] + rz * rh.ray.dir_z[k]);
-        float wgt = m.kd * ndl[k] + m.ks * power(std::max(rv, 0.0f), m.shine);
-        L.c[0][k] += float(lt.color.x) * col[0][k] * wgt;
-        L.c[1][k] += float(lt.color.y) * col[1][k] * wgt;
-        L.c[2][k] += float(lt.color.z) * col[2][k] * wgt;
+        rv[k] = std::max(0.0f, -(rx * rh.ray.dir_x[k] + ry * rh.ray.dir_y[k] + rz * rh.ray.dir_z[k]));
+      }
+      if (whole_shine_) {
+        power_whole(rv, shine, shine_bits_, spec);
+      } else {
+        for (int k = 0; k < 16; k++) spec[k] = shine[k] == 0 ? 1.0f : (rv[k] > 0 ? std::pow(rv[k], shine[k]) : 0.0f);
+      }
+      for (int k = 0; k < 16; k++) {
+        bool lit = (svalid[k] != 0) & (sr.tfar[k] >= 0);  // Embree sets tfar to -inf on a blocked ray
+        float wgt = lit ? kd[k] * ndl[k] + ks[k] * spec[k] : 0.0f;
+        L.c[0][k] += lr * cr[k] * wgt, L.c[1][k] += lg * cg[k] * wgt, L.c[2][k] += lb * cb[k] * wgt;
       }
     }
 
     // the mirror rays of the next level, from lanes that hit something reflective
     if (level >= levels) break;
-    bool more = false;
+    int more = 0;
+    unsigned n_reflection = 0;
     for (int k = 0; k < 16; k++) {
-      valid[k] = 0;
-      if (!L.hit[k] || L.kr[k] == 0) continue;
       float dx = rh.ray.dir_x[k], dy = rh.ray.dir_y[k], dz = rh.ray.dir_z[k];
       float dn = 2 * (dx * nx[k] + dy * ny[k] + dz * nz[k]);
       float rx = dx - dn * nx[k], ry = dy - dn * ny[k], rz = dz - dn * nz[k];
       float il = 1.0f / std::sqrt(rx * rx + ry * ry + rz * rz);
       rh.ray.org_x[k] = sx[k], rh.ray.org_y[k] = sy[k], rh.ray.org_z[k] = sz[k];
       rh.ray.dir_x[k] = rx * il, rh.ray.dir_y[k] = ry * il, rh.ray.dir_z[k] = rz * il;
-      valid[k] = -1;
-      counts.reflection++;
-      more = true;
+      valid[k] = ((L.hit[k] != 0) & (L.kr[k] != 0)) ? -1 : 0;
+      n_reflection += valid[k] & 1;
+      more |= valid[k];
     }
+    counts.reflection += n_reflection;
     if (!more) break;
   }
 
-  // fold the chain back from the deepest level, clamping every level to [0, 1]
+  // fold the chain back from the deepest level, clamping every level to [0, 1]; a lane that missed is black
+  float c[3][16] = {};
+  for (unsigned l = used; l-- > 0;) {
+    const Level& L = chain_[l];
+    for (int ch = 0; ch < 3; ch++)
+      for (int k = 0; k < 16; k++)
+        c[ch][k] = L.hit[k] ? std::min(1.0f, std::max(0.0f, L.c[ch][k] + L.kr[k] * c[ch][k])) : 0.0f;
+  }
   for (int k = 0; k < 16; k++) {
     unsigned i = bx + k % 4, j = by + k / 4;
     if (i >= w || j >= h) continue;
-    float c[3] = {0, 0, 0};
-    for (unsigned l = used; l-- > 0;) {
-      const Level& L = chain_[l];
-      for (int ch = 0; ch < 3; ch++)
-        c[ch] = L.hit[k] ? std::min(1.0f, std::max(0.0f, L.c[ch][k] + L.kr[k] * c[ch])) : 0.0f;
-    }
     uint8_t* px = rgb + (size_t(j) * w + i) * 3;
-    for (int ch = 0; ch < 3; ch++) px[ch] = uint8_t(std::lround(255.0f * c[ch]));
+    for (int ch = 0; ch < 3; ch++) px[ch] = uint8_t(255.0f * c[ch][k] + 0.5f);  // round(255 c), c in [0, 1]
   }
 }
 
