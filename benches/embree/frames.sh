@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Whole frames against a Whitted tracer on Embree 3 (benches/embree/whitted.cpp, the same scene, camera and shading):
 # the 100k- and 1M-triangle tori, 1920 x 1080, recursion level 4, 1 thread, whole process. Per round and torus:
-# octaray with its mesh cache warm, octaray with OCTARAY_MESH_CACHE=off, the Embree tracer (order rotated each
-# round); wall time (bash's EPOCHREALTIME around /usr/bin/time) and peak RSS (/usr/bin/time). Prints every run,
+# octaray with its mesh cache warm, octaray with OCTARAY_MESH_CACHE=off, the Embree tracer, and the Embree tracer
+# with --floor-last (the floor tested after Embree's traversal, as octaray orders it, instead of bounding the ray)
+# (order rotated each round); wall time (bash's EPOCHREALTIME around /usr/bin/time) and peak RSS (/usr/bin/time). Prints every run,
 # then medians, spreads, the ratios octaray / embree (of the medians and of each round's pair), both programs'
 # time split and ray counts, and how far the images differ.
 # usage, from the repository root:
@@ -37,6 +38,7 @@ run() { # mesh who
   local out=$work/$1.$2.bmp cmd
   case $2 in
     embree) cmd=("$e" "$tdir/$1.txt" "${cam[@]}" -o "$out") ;;
+    embree_fl) cmd=("$e" "$tdir/$1.txt" "${cam[@]}" --floor-last -o "$out") ;;
     warm) cmd=("$o" render "$tdir/$1.txt" "${cam[@]}" -o "$out") ;;
     off) cmd=(env OCTARAY_MESH_CACHE=off "$o" render "$tdir/$1.txt" "${cam[@]}" -o "$out") ;;
   esac
@@ -53,7 +55,7 @@ run() { # mesh who
 for mesh in torus100k torus1m; do run $mesh warm >/dev/null; done  # writes the mesh cache
 log=$work/log
 uptime
-order=(warm embree off)
+order=(warm embree off embree_fl)
 for ((r = 1; r <= rounds; r++)); do
   for mesh in torus100k torus1m; do
     for who in "${order[@]}"; do run $mesh $who | tee -a "$log"; done
@@ -85,9 +87,9 @@ def bmp(path):
     return (a[::-1] if h > 0 else a).astype(int)
 
 for mesh in ('torus100k', 'torus1m'):
-    e = runs[(mesh, 'embree')]
+    e, efl = runs[(mesh, 'embree')], runs[(mesh, 'embree_fl')]
     print(f'\n{mesh}: wall s, median [min-max] of {len(e)}; peak RSS MB, median; program\'s own split, medians')
-    for who in ('warm', 'off', 'embree'):
+    for who in ('warm', 'off', 'embree', 'embree_fl'):
         rs = runs[(mesh, who)]
         walls = [x[0] for x in rs]
         parts = {}
@@ -99,12 +101,15 @@ for mesh in ('torus100k', 'torus1m'):
             # for both start-up and exit
             parts.setdefault('rest', []).append(wall - sum(float(v) for _, v in times))
         part = ', '.join(f'{n} {st.median(v):.3f}' for n, v in parts.items())
-        name = {'warm': 'octaray (cache warm)', 'off': 'octaray (cache off)', 'embree': 'embree whitted'}[who]
+        name = {'warm': 'octaray (cache warm)', 'off': 'octaray (cache off)', 'embree': 'embree whitted',
+                'embree_fl': 'embree --floor-last'}[who]
         line = (f'  {name:22s} {st.median(walls):.3f} [{min(walls):.3f}-{max(walls):.3f}]'
                 f'  rss {st.median(x[1] for x in rs) / 1024:.1f} MB  ({part})')
-        if who != 'embree':
-            pair = [a[0] / b[0] for a, b in zip(rs, e)]
-            line += (f'\n  {"":22s} octaray/embree: of medians {st.median(walls) / st.median(x[0] for x in e):.3f},'
+        for base, label in ((e, 'embree'), (efl, 'embree --floor-last')):
+            if who in ('embree', 'embree_fl'):
+                break
+            pair = [a[0] / b[0] for a, b in zip(rs, base)]
+            line += (f'\n  {"":22s} octaray / {label}: of medians {st.median(walls) / st.median(x[0] for x in base):.3f},'
                      f' per round median {st.median(pair):.3f} [{min(pair):.3f}-{max(pair):.3f}]')
         print(line)
     ro, re_ = split(runs[(mesh, 'warm')][0][2])[1], split(e[0][2])[1]

@@ -2,7 +2,7 @@
 // docs/scene-format.md (Phong with hard shadows, mirror reflection, per-level clamping, the checkerboard floor).
 //
 // usage: whitted SCENE -o OUT.bmp [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov DEG] [--size N|WxH]
-//                      [--threads 1]
+//                      [--threads 1] [--floor-last]
 // Camera arguments mean what they mean to `octaray render` (src/scene/camera.rs): vertical field of view in degrees,
 // `up` made orthogonal to the view direction, rays through pixel centres, the window widened for non-square
 // images. Defaults: the assignment's camera, the scene's `pixels` square.
@@ -15,7 +15,8 @@
 // lanes whose light is in front of the surface), mirror rays with rtcIntersect16 up to the recursion level (level
 // N gives N - 1 bounces); the camera rays and their shadow rays go with Embree's coherent flag, the rest without.
 // Embree holds the triangles; the floor (z = 0, |x|, |y| <= 500) is a plane tested beside it: it shortens a
-// closest-hit ray's tfar before Embree traverses, and blocks shadow rays before Embree is asked.
+// closest-hit ray's tfar before Embree traverses (with --floor-last it is tested after Embree's traversal, as
+// octaray tests it after its tree), and blocks shadow rays before Embree is asked.
 // Secondary rays start at P + eps N (N the geometric normal turned to face the incoming ray, so both shadow rays
 // toward a light in front and mirror rays leave on that side), eps = 1e-4 max(1, |P|_inf).
 //
@@ -395,8 +396,8 @@ static inline void power_whole(const float* x, const float* e, unsigned bits, fl
 
 class Renderer {
  public:
-  Renderer(RTCScene scene, const Scene& sc, std::vector<int> geom_object)
-      : scene_(scene), sc_(sc), geom_object_(std::move(geom_object)) {
+  Renderer(RTCScene scene, const Scene& sc, std::vector<int> geom_object, bool floor_last)
+      : scene_(scene), sc_(sc), geom_object_(std::move(geom_object)), floor_last_(floor_last) {
     rtcInitIntersectContext(&coherent_);
     coherent_.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     rtcInitIntersectContext(&incoherent_);
@@ -420,6 +421,7 @@ class Renderer {
   const Scene& sc_;
   std::vector<int> geom_object_;  // Embree geometry ID -> object index (-1: the loose triangles, by primID)
   RTCIntersectContext coherent_, incoherent_;
+  bool floor_last_;  // closest hits: the floor tested after Embree's traversal instead of bounding it
   bool whole_shine_;
   unsigned shine_bits_;
   std::vector<Level> chain_;
@@ -450,19 +452,27 @@ void Renderer::block(const Camera& cam, unsigned bx, unsigned by, unsigned w, un
   const unsigned levels = std::max(1u, sc_.recursion_level);
   unsigned used = 0;
   for (unsigned level = 1;; level++) {
-    // closest hit: the floor bounds the ray, then Embree looks for triangles before it
+    // closest hit: the floor bounds the ray, then Embree looks for triangles before it (--floor-last: Embree
+    // first, then the floor)
     float ft[16];
     for (int k = 0; k < 16; k++) {
       float t;
       bool hit = floor_hit(rh.ray.org_x[k], rh.ray.org_y[k], rh.ray.org_z[k], rh.ray.dir_x[k], rh.ray.dir_y[k],
                            rh.ray.dir_z[k], INFINITY, t);
       ft[k] = hit ? t : INFINITY;
-      rh.ray.tnear[k] = 0, rh.ray.tfar[k] = ft[k], rh.ray.time[k] = 0;
+      rh.ray.tnear[k] = 0, rh.ray.tfar[k] = floor_last_ ? INFINITY : ft[k], rh.ray.time[k] = 0;
       rh.ray.mask[k] = 0xFFFFFFFFu, rh.ray.id[k] = k, rh.ray.flags[k] = 0;
       rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
     }
     rtcIntersect16(valid, scene_, level == 1 ? &coherent_ : &incoherent_, &rh);
+    if (floor_last_) {
+      for (int k = 0; k < 16; k++) {
+        bool floor_wins = ft[k] < rh.ray.tfar[k];  // a tie goes to the triangle
+        rh.hit.geomID[k] = floor_wins ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID[k];
+        rh.ray.tfar[k] = floor_wins ? ft[k] : rh.ray.tfar[k];
+      }
+    }
 
     if (chain_.size() < level) chain_.resize(level);
     Level& L = chain_[level - 1];
@@ -653,13 +663,14 @@ static V3 parse_v3_arg(const char* flag, const char* s) {
 int main(int argc, char** argv) {
   const char* usage =
       "usage: whitted SCENE -o OUT.bmp [--eye X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z] [--fov DEG] [--size N|WxH] "
-      "[--threads 1]";
+      "[--threads 1] [--floor-last]";
   std::string scene_path, out_path;
   double s = M_SQRT1_2;
   V3 eye{100, 100, 50}, up{0, 0, 1};
   V3 target = eye + V3{-s, -s, 0};
   double fov = 80;
   unsigned w = 0, h = 0;
+  bool floor_last = false;
   for (int a = 1; a < argc; a++) {
     std::string f = argv[a];
     auto val = [&]() -> const char* {
@@ -685,7 +696,8 @@ int main(int argc, char** argv) {
       if (w < 1 || h < 1 || w > 16384 || h > 16384) fail(std::string("--size: expected N or WxH (1..16384), got `") + v + "`");
     } else if (f == "--threads") {
       if (std::string(val()) != "1") fail("--threads: this tracer renders on 1 thread only");
-    } else if (f[0] == '-') fail("unknown option `" + f + "`\n" + usage);
+    } else if (f == "--floor-last") floor_last = true;
+    else if (f[0] == '-') fail("unknown option `" + f + "`\n" + usage);
     else if (scene_path.empty()) scene_path = f;
     else fail(std::string("one scene only\n") + usage);
   }
@@ -731,7 +743,7 @@ int main(int argc, char** argv) {
   auto t2 = clk::now();
 
   Camera cam = make_camera(eye, target, up, fov, w, h);
-  Renderer r(scene, sc, geom_object);
+  Renderer r(scene, sc, geom_object, floor_last);
   std::vector<uint8_t> rgb(size_t(w) * h * 3);
   for (unsigned by = 0; by < h; by += 4)
     for (unsigned bx = 0; bx < w; bx += 4) r.block(cam, bx, by, w, h, rgb.data());
