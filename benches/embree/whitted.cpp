@@ -27,6 +27,8 @@
 #include <xmmintrin.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -66,15 +68,17 @@ static std::vector<char> read_file(const std::string& path) {
   FILE* f = fopen(path.c_str(), "rb");
   if (!f) fail(path + ": cannot read: " + strerror(errno));
   std::vector<char> buf;
-  if (fseek(f, 0, SEEK_END) == 0) {
-    long n = ftell(f);
-    if (n > 0) buf.reserve(size_t(n) + 1);
-    fseek(f, 0, SEEK_SET);
+  // a regular file in one read of its size; anything else (a pipe) in chunks
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (n >= 0 && fseek(f, 0, SEEK_SET) == 0) {
+    buf.resize(size_t(n));
+    if (fread(buf.data(), 1, buf.size(), f) != buf.size()) fail(path + ": cannot read: " + strerror(errno));
+  } else {
+    char chunk[1 << 16];
+    size_t got;
+    while ((got = fread(chunk, 1, sizeof chunk, f)) > 0) buf.insert(buf.end(), chunk, chunk + got);
+    if (ferror(f)) fail(path + ": cannot read: " + strerror(errno));
   }
-  char chunk[1 << 16];
-  size_t got;
-  while ((got = fread(chunk, 1, sizeof chunk, f)) > 0) buf.insert(buf.end(), chunk, chunk + got);
-  if (ferror(f)) fail(path + ": cannot read: " + strerror(errno));
   fclose(f);
   return buf;
 }
