@@ -18,8 +18,8 @@ uptime
   ./bench_e3 data/torus100k.mesh data/incoherent.rays 1 1 5
   ./bench_e3 data/torus1m.mesh data/primary.rays 1 8 3
 )
-"$o" bench-trace "$peer/data/torus100k.obj" 2>&1 | grep -v '^  ('
-"$o" bench-trace "$peer/data/torus1m.obj" --reps 3 2>&1 | grep -E 'mode=8|bvh:'
+"$o" bench-trace --rays "$peer/data" "$peer/data/torus100k.obj" 2>&1 | grep -v '^  ('
+"$o" bench-trace --rays "$peer/data" "$peer/data/torus1m.obj" --reps 3 2>&1 | grep -E 'mode=8|bvh:'
 uptime
 # given scene 768², recursion level 4, whole process, 2 threads
 # Each timed run writes a fresh file (--prepare): replacing an existing file by rename

@@ -23,7 +23,7 @@ for i in $(seq "$rounds"); do
         done
       done
     done
-    "$o" bench-trace "$peer/data/$mesh.obj" 2>/dev/null | tee -a "$log"
+    "$o" bench-trace --rays "$peer/data" "$peer/data/$mesh.obj" 2>/dev/null | tee -a "$log"
   done
 done
 uptime

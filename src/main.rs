@@ -278,6 +278,12 @@ struct BenchTraceArgs {
     /// one of these for every command).
     #[arg(long, value_name = "auto|avx2|avx512")]
     isa: Option<String>,
+    /// Trace the rays of DIR/primary.rays and DIR/incoherent.rays, the Embree harness's
+    /// files (benches/embree/gen_data.py writes them beside the meshes), instead of
+    /// generating the same distributions here: every line then traces the very rays
+    /// Embree traces, and hit fractions and mean t compare ray for ray.
+    #[arg(long, value_name = "DIR")]
+    rays: Option<PathBuf>,
 }
 
 /// The instruction set chosen by `--isa`, else by `OCTARAY_ISA`, else the widest the
@@ -296,6 +302,7 @@ fn run_bench_trace(args: &BenchTraceArgs) -> Result<(), Failure> {
     let isa = chosen_isa(args.isa.as_deref())?;
     octaray::bvh::bench::run(
         &args.mesh,
+        args.rays.as_deref(),
         isa,
         args.threads as usize,
         args.reps as usize,

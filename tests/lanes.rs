@@ -208,6 +208,27 @@ fn a_bad_instruction_set_is_an_input_error_naming_its_source() {
     assert!(err.contains("OCTARAY_ISA") && err.contains("neon"), "{err}");
 }
 
+/// `bench-trace --rays DIR` checks the Embree harness's ray files before it loads the
+/// mesh: a missing one is an input error naming the file.
+#[test]
+fn a_missing_ray_file_is_an_input_error_naming_it() {
+    let dir = std::env::temp_dir().join(format!("octaray-no-rays-{}", std::process::id()));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_octaray"))
+        .args(["bench-trace", "no-such.obj", "--rays"])
+        .arg(&dir)
+        .env_remove("OCTARAY_ISA")
+        .output()
+        .expect("octaray runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    let file = dir.join("primary.rays");
+    assert!(err.contains(&*file.to_string_lossy()), "{err}");
+    assert!(
+        err.contains("cannot open") && !err.contains("panick"),
+        "{err}"
+    );
+}
+
 /// Every built-in packet profile renders the same bytes under `avx2` and `avx512` (the
 /// camera rays of two blocks as one 16-lane packet), on a scene of every kind large
 /// enough for the frustum walk, whole and in a crop, and on a mesh close up.

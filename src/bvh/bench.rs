@@ -1,7 +1,8 @@
 //! The standard trace work of the Embree comparison (`benches/embree/`, whose
 //! `gen_data.py` writes the meshes), for `octaray bench-trace` and the criterion
 //! benches: a triangle mesh from an OBJ file, 1024² coherent primary rays in 4 × 2
-//! pixel packets and 2²⁰ incoherent rays, closest hit with t in (0, ∞), then the
+//! pixel packets and 2²⁰ incoherent rays (generated here, or read from the harness's
+//! `.rays` files: [`read_rays`]), closest hit with t in (0, ∞), then the
 //! shadow rays of each set (any hit, [`shadow_rays`]); build best of 3 and trace best
 //! of 5, reported in the Embree harness's fields for the packet path (mode=8: the
 //! 8-wide tree collapsed from the same BVH, as a frustum for packets whose lanes share
@@ -132,6 +133,112 @@ pub fn incoherent_rays(n: usize, seed: u64) -> RaySet {
         name: "incoherent",
         origin,
         dir,
+    }
+}
+
+/// Most rays a `.rays` file may hold (2²⁴: 384 MiB of rays; the standard sets hold
+/// 2²⁰).
+pub const MAX_FILE_RAYS: u32 = 1 << 24;
+
+/// A `.rays` file that cannot be traced: the file and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RaysError {
+    pub file: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for RaysError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.file, self.message)
+    }
+}
+
+impl std::error::Error for RaysError {}
+
+/// The ray count a `.rays` file of the Embree harness declares, checked against the
+/// file's size: a little-endian u32 count, then per ray its origin and unit direction
+/// as six little-endian f32 (`benches/embree/gen_data.py`, `save_rays`).
+pub fn rays_in_file(path: &Path) -> Result<usize, RaysError> {
+    use std::io::Read;
+    let fail = |message: String| RaysError {
+        file: path.display().to_string(),
+        message,
+    };
+    let mut f = std::fs::File::open(path).map_err(|e| fail(format!("cannot open: {e}")))?;
+    let len = f
+        .metadata()
+        .map_err(|e| fail(format!("cannot read: {e}")))?
+        .len();
+    let mut head = [0u8; 4];
+    f.read_exact(&mut head)
+        .map_err(|_| fail(format!("{len} bytes: shorter than its 4-byte ray count")))?;
+    let n = u32::from_le_bytes(head);
+    if n == 0 {
+        return Err(fail("ray count 0: no rays to trace".into()));
+    }
+    if n > MAX_FILE_RAYS {
+        return Err(fail(format!(
+            "ray count {n}: more than the {MAX_FILE_RAYS} this benchmark traces"
+        )));
+    }
+    let want = 4 + 24 * u64::from(n);
+    if len != want {
+        return Err(fail(format!(
+            "ray count {n} needs {want} bytes (24 per ray after the count), the file has {len}"
+        )));
+    }
+    Ok(n as usize)
+}
+
+/// The rays of a `.rays` file of the Embree harness ([`rays_in_file`]), in its order
+/// (streamed: the file is never held whole beside the rays).
+pub fn read_rays(path: &Path, name: &'static str) -> Result<RaySet, RaysError> {
+    use std::io::Read;
+    let n = rays_in_file(path)?;
+    let fail = |e: std::io::Error| RaysError {
+        file: path.display().to_string(),
+        message: format!("cannot read: {e}"),
+    };
+    let mut f = std::io::BufReader::new(std::fs::File::open(path).map_err(fail)?);
+    f.read_exact(&mut [0u8; 4]).map_err(fail)?;
+    let (mut origin, mut dir) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut ray = [0u8; 24];
+    for _ in 0..n {
+        f.read_exact(&mut ray).map_err(fail)?;
+        let c = |k: usize| f32::from_le_bytes([ray[k], ray[k + 1], ray[k + 2], ray[k + 3]]);
+        origin.push(Vec3::new(c(0), c(4), c(8)));
+        dir.push(Vec3::new(c(12), c(16), c(20)));
+    }
+    Ok(RaySet { name, origin, dir })
+}
+
+/// Why `bench-trace` stopped: its mesh or a ray file.
+#[derive(Debug)]
+pub enum BenchError {
+    Mesh(ObjError),
+    Rays(RaysError),
+}
+
+impl std::fmt::Display for BenchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BenchError::Mesh(e) => e.fmt(f),
+            BenchError::Rays(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for BenchError {}
+
+impl From<ObjError> for BenchError {
+    fn from(e: ObjError) -> Self {
+        BenchError::Mesh(e)
+    }
+}
+
+impl From<RaysError> for BenchError {
+    fn from(e: RaysError) -> Self {
+        BenchError::Rays(e)
     }
 }
 
@@ -641,18 +748,26 @@ pub fn timed_occluded(
 /// incoherent) closest hit and the set's shadow rays (any hit) on the packet and the
 /// single-ray paths, each line printed to `out` as it is measured. Load time, SAH cost,
 /// depth, memory by part and steps per ray go to `log`.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     mesh: &Path,
+    rays_dir: Option<&Path>,
     isa: Isa,
     threads: usize,
     reps: usize,
     out: &mut (dyn std::io::Write + Send),
     log: &mut (dyn std::io::Write + Send),
-) -> Result<Vec<TraceRun>, ObjError> {
+) -> Result<Vec<TraceRun>, BenchError> {
     let name = mesh.file_name().map_or_else(
         || mesh.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
+    // the ray files are checked before the mesh is loaded and built
+    let ray_file = |set: &str| rays_dir.map(|d| d.join(format!("{set}.rays")));
+    for path in ["primary", "incoherent"].iter().filter_map(|s| ray_file(s)) {
+        let n = rays_in_file(&path)?;
+        let _ = writeln!(log, "octaray rays: {n} rays from {}", path.display());
+    }
     crate::parallel::with_threads(Some(threads), || {
         let start = Instant::now();
         let cache = crate::scene::mesh_cache::dir();
@@ -778,10 +893,17 @@ pub fn run(
             if !wanted(set) && !wanted(shadow) {
                 continue;
             }
-            let rays = if set == "primary" {
-                primary_rays(1024, 1024)
-            } else {
-                incoherent_rays(1 << 20, 7)
+            let rays = match ray_file(set) {
+                Some(path) => read_rays(
+                    &path,
+                    if set == "primary" {
+                        "primary"
+                    } else {
+                        "incoherent"
+                    },
+                )?,
+                None if set == "primary" => primary_rays(1024, 1024),
+                None => incoherent_rays(1 << 20, 7),
             };
             let mut t = vec![0.0f32; rays.origin.len()];
             if wanted(set) {
@@ -861,5 +983,60 @@ mod tests {
         assert_eq!(tris[1].v[2], Vec3::Z);
         let mesh = crate::scene::obj::parse_obj("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "d.obj");
         assert_eq!(mesh_triangles(mesh.unwrap()), (vec![], 1));
+    }
+
+    /// The Embree harness's ray files: count, then origin and direction per ray (the
+    /// layout `gen_data.py` writes); a file whose count, size or content disagree is an
+    /// error naming it, never a panic or a partial set.
+    #[test]
+    fn ray_files_are_read_as_the_harness_writes_them_or_refused_by_name() {
+        let dir = std::env::temp_dir().join(format!("octaray-rays-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = |name: &str, bytes: &[u8]| {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).unwrap();
+            p
+        };
+        let rays: [[f32; 6]; 3] = [
+            [0.5, -1.25, 3.0, 0.0, 0.0, 1.0],
+            [-0.0, 1e-30, f32::MAX, 0.6, 0.8, 0.0],
+            [1.0, 2.0, 3.0, -1.0, 0.0, 0.0],
+        ];
+        let mut bytes = 3u32.to_le_bytes().to_vec();
+        for v in rays.iter().flatten() {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        let good = file("good.rays", &bytes);
+        let set = read_rays(&good, "primary").unwrap();
+        assert_eq!(set.name, "primary");
+        for (k, r) in rays.iter().enumerate() {
+            assert_eq!(set.origin[k].to_array(), [r[0], r[1], r[2]], "ray {k}");
+            assert_eq!(set.dir[k].to_array(), [r[3], r[4], r[5]], "ray {k}");
+        }
+        assert_eq!(set.origin[1].x.to_bits(), (-0.0f32).to_bits());
+        let refused = |path: &Path, says: &str| {
+            let e = read_rays(path, "incoherent").unwrap_err();
+            assert_eq!(e.file, path.display().to_string());
+            assert!(e.message.contains(says), "{e}");
+            assert!(
+                e.to_string().starts_with(&path.display().to_string()),
+                "{e}"
+            );
+        };
+        refused(&dir.join("missing.rays"), "cannot open");
+        refused(
+            &file("short.rays", &[1, 0]),
+            "shorter than its 4-byte ray count",
+        );
+        refused(&file("empty.rays", &0u32.to_le_bytes()), "no rays");
+        refused(&file("huge.rays", &u32::MAX.to_le_bytes()), "more than");
+        refused(
+            &file("cut.rays", &bytes[..bytes.len() - 1]),
+            "needs 76 bytes",
+        );
+        let mut long = bytes.clone();
+        long.push(0);
+        refused(&file("long.rays", &long), "the file has 77");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
