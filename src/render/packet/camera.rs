@@ -137,7 +137,11 @@ impl<S: Settings> SampleTracer for Tracer<'_, S> {
         };
         let camera =
             (scratch.camera).get_or_insert_with(|| CameraPackets::new(&samples.grid, self.base));
-        let rays = blocks.map(|b| camera.packet(b, samples));
+        // (an array literal: `blocks.map` moved each 480-byte packet through copies)
+        let rays = [
+            camera.packet(blocks[0], samples),
+            camera.packet(blocks[1], samples),
+        ];
         let active = blocks.map(|b| Mask8::from_bits(b.bits));
         let mut steps = Steps::default();
         let hits = closest_x16::<S::Tri>(token, &self.bvh, &rays, active, &mut steps);
