@@ -72,6 +72,9 @@ fn in_turn(mut live: u32, mut step: impl FnMut(usize) -> bool) {
     }
 }
 
+/// [`Bvh::step_1`]'s `KZ` for walks whose ray's permutation is read at each leaf.
+const ANY_KZ: usize = 3;
+
 /// One ray's walk in progress (what `walk_1` keeps in locals), for walks stepped in
 /// turn.
 struct Walk<'a, T: TriangleKernel> {
@@ -160,7 +163,7 @@ impl Bvh {
 
     /// The tree part of [`Bvh::intersect_1`] for a ray whose largest direction
     /// component is axis `KZ` (the triangle kernel's permutation, fixed here once per
-    /// ray instead of per block).
+    /// ray instead of per block): [`Bvh::step_1`] until no subtree is left.
     #[inline(always)]
     fn walk_1<T: TriangleKernel, const KZ: usize>(
         &self,
@@ -168,41 +171,9 @@ impl Bvh {
         hit: &mut Hit1,
         steps: &mut Steps,
     ) {
-        let w = &self.wide;
         let mut stack = Stack::<Pending, WIDE_STACK>::new();
         let mut cur = SlotRef::ROOT;
-        'walk: loop {
-            if cur.slot.is_interior() {
-                let node = &w.nodes[cur.child as usize];
-                steps.boxes += 1;
-                let (m, near) = wr.boxes.test(&node.bounds, hit.t);
-                let mut bits = m.bits();
-                w.prefetch_children(node, bits, false);
-                if bits != 0 {
-                    let first = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    cur = if bits == 0 {
-                        node.get(first)
-                    } else {
-                        // two or more: nearest next, the others pushed farthest first
-                        WideBvh::push_ordered(node, near, first, bits, &mut stack)
-                    };
-                    continue 'walk;
-                }
-            } else {
-                self.leaf_intersect_1::<T, KZ>(cur, wr, hit, steps);
-            }
-            // pop the next subtree still in front of the nearest hit
-            loop {
-                let Some(p) = stack.pop() else {
-                    break 'walk;
-                };
-                if p.near <= hit.t {
-                    cur = p.to;
-                    break;
-                }
-            }
-        }
+        while self.step_1::<T, KZ>(wr, &mut cur, &mut stack, hit, steps) {}
     }
 
     /// The tree part of [`Bvh::intersect_1`] for up to sixteen rays at once: each ray's
@@ -244,54 +215,60 @@ impl Bvh {
         });
         let live = live_walks(rays);
         in_turn(live, |k| {
-            self.step_1(&mut walks[k], stacks[k], &mut hits[k], steps)
+            let w = &mut walks[k];
+            self.step_1::<T, ANY_KZ>(&w.wr, &mut w.cur, stacks[k], &mut hits[k], steps)
         });
     }
 
-    /// One step of a ray's walk (`walk_1`'s loop body): the node or leaf at `w.cur`,
-    /// then the next subtree still in front of the nearest hit; false when none is left.
+    /// One step of a ray's closest-hit walk: the node or leaf at `cur`, then the next
+    /// subtree still in front of the nearest hit; false when none is left. `KZ`: the
+    /// ray's triangle permutation (0–2, fixed per ray), or [`ANY_KZ`] to pick it at
+    /// each leaf (walks of different rays stepped in turn).
     #[inline(always)]
-    fn step_1<T: TriangleKernel>(
+    fn step_1<T: TriangleKernel, const KZ: usize>(
         &self,
-        w: &mut Walk<T>,
+        wr: &WideRay<T>,
+        cur: &mut SlotRef,
         stack: &mut Stack<Pending, WIDE_STACK>,
         hit: &mut Hit1,
         steps: &mut Steps,
     ) -> bool {
-        let wide = &self.wide;
-        if w.cur.slot.is_interior() {
-            let node = &wide.nodes[w.cur.child as usize];
+        let w = &self.wide;
+        if cur.slot.is_interior() {
+            let node = &w.nodes[cur.child as usize];
             steps.boxes += 1;
-            let (m, near) = w.wr.boxes.test(&node.bounds, hit.t);
+            let (m, near) = wr.boxes.test(&node.bounds, hit.t);
             let mut bits = m.bits();
-            wide.prefetch_children(node, bits, false);
+            w.prefetch_children(node, bits, false);
             if bits != 0 {
                 let first = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                w.cur = if bits == 0 {
+                *cur = if bits == 0 {
                     node.get(first)
                 } else {
+                    // two or more: nearest next, the others pushed farthest first
                     WideBvh::push_ordered(node, near, first, bits, stack)
                 };
                 return true;
             }
-        } else {
-            let (cur, wr) = (w.cur, &w.wr);
+        } else if KZ == ANY_KZ {
+            let leaf = *cur;
             with_const!(
                 wr.r.kz,
                 [0, 1, 2],
-                self.leaf_intersect_1::<T>(cur, wr, hit, steps)
+                self.leaf_intersect_1::<T>(leaf, wr, hit, steps)
             );
+        } else {
+            self.leaf_intersect_1::<T, KZ>(*cur, wr, hit, steps);
         }
-        loop {
-            let Some(p) = stack.pop() else {
-                return false;
-            };
+        // pop the next subtree still in front of the nearest hit
+        while let Some(p) = stack.pop() {
             if p.near <= hit.t {
-                w.cur = p.to;
+                *cur = p.to;
                 return true;
             }
         }
+        false
     }
 
     #[inline]
