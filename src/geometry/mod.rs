@@ -483,6 +483,25 @@ impl PrimSet {
         }
     }
 
+    /// The scene object of triangle hit `code`; `None` for any other code.
+    #[inline]
+    pub fn object_of_triangle(&self, code: i32) -> Option<u32> {
+        match split_code(code)? {
+            (PrimKind::Triangle, i) => self.triangle_obj.get(i).copied(),
+            _ => None,
+        }
+    }
+
+    /// The index in `triangles` of triangle hit `code` when it belongs to scene object
+    /// `object`; `None` otherwise.
+    #[inline]
+    pub fn triangle_of(&self, code: i32, object: u32) -> Option<usize> {
+        match split_code(code)? {
+            (PrimKind::Triangle, i) if self.triangle_obj.get(i) == Some(&object) => Some(i),
+            _ => None,
+        }
+    }
+
     /// Whether a hit of primitive `code` at exactly the t of the held hit `held` wins
     /// the tie: the lower object index (the file's order; the floor, u32::MAX, loses
     /// every tie), then the lower primitive code (one object's triangles), so the

@@ -249,19 +249,28 @@ impl Triangle32 {
 
     /// [`Triangle32::surface_1`] on eight lanes, operation for operation.
     pub fn surface_x8(&self, b1: f32x8, b2: f32x8) -> Surface8 {
-        let b0 = f32x8::splat(1.0) - b1 - b2;
-        let [a, b, c] = self.v.map(Vec3x8::splat);
-        let terms = [a * b0, b * b1, c * b2];
-        let point = terms[0] + terms[1] + terms[2];
-        let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * f32x8::splat(gamma32(7));
-        let normal = (self.v[1] - self.v[0])
-            .cross(self.v[2] - self.v[0])
-            .normalize_or(Vec3::Z);
-        Surface8 {
-            point,
-            normal: Vec3x8::splat(normal),
-            err,
-        }
+        surface_lanes(self.v.map(Vec3x8::splat), b1, b2)
+    }
+}
+
+/// [`Triangle32::surface_1`] of eight triangles at once: lane i of the corners `v` is
+/// triangle i's, with its barycentrics `b1`, `b2`; operation for operation, so every
+/// lane has the bits `surface_1` gives (glam's products, sums and `normalize_or`).
+pub fn surface_lanes(v: [Vec3x8; 3], b1: f32x8, b2: f32x8) -> Surface8 {
+    let b0 = f32x8::splat(1.0) - b1 - b2;
+    let [a, b, c] = v;
+    let terms = [a * b0, b * b1, c * b2];
+    let point = terms[0] + terms[1] + terms[2];
+    let err = (terms[0].abs() + terms[1].abs() + terms[2].abs()) * f32x8::splat(gamma32(7));
+    let n = (b - a).cross(c - a);
+    // `normalize_or(Vec3::Z)`: n / |n| where 1/|n| is finite and positive
+    let rcp = f32x8::splat(1.0) / n.length();
+    let ok = rcp.lt(f32x8::splat(f32::INFINITY)) & rcp.gt(f32x8::ZERO);
+    let z = Vec3x8::splat(Vec3::Z);
+    Surface8 {
+        point,
+        normal: Vec3x8::select(ok, n * rcp, z),
+        err,
     }
 }
 
@@ -631,6 +640,64 @@ mod tests {
         DVec3::new(1.0, 0.0, 0.0),
         DVec3::new(0.0, 1.0, 0.0),
     ];
+
+    /// Eight different triangles' surfaces at once are, lane by lane, the bits of
+    /// `surface_1`: ordinary triangles, degenerate ones (zero normal: the fallback +z),
+    /// ones whose normal overflows or underflows f32 (fallback too), tiny and far ones.
+    #[test]
+    fn surfaces_of_eight_triangles_are_each_triangles_own() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move |scale: f32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            ((seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
+        };
+        let v3 = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        for round in 0..200 {
+            let scale = [1.0, 1e-20, 1e20, 3e4][round % 4];
+            let tris: [Triangle32; 8] = std::array::from_fn(|i| {
+                let mut v = [0; 3].map(|_| v3(rnd(scale), rnd(scale), rnd(scale)));
+                match (round + i) % 7 {
+                    0 => v[2] = v[0] + (v[1] - v[0]) * 0.5, // collinear
+                    1 => v[1] = v[0],                       // a repeated corner
+                    2 => {
+                        v = [
+                            v3(1e30, 0.0, 0.0),
+                            v3(-1e30, 1e30, 0.0),
+                            v3(0.0, -1e30, 1e30),
+                        ]
+                    }
+                    3 => v = [v3(0.0, 0.0, 0.0), v3(1e-30, 0.0, 0.0), v3(0.0, 1e-30, 0.0)],
+                    _ => {}
+                }
+                Triangle32 { v }
+            });
+            let b1: [f32; 8] = std::array::from_fn(|_| rnd(0.5) + 0.5);
+            let b2: [f32; 8] = std::array::from_fn(|i| (rnd(0.5) + 0.5) * (1.0 - b1[i]));
+            let corners = [0, 1, 2].map(|k| Vec3x8::from_lanes(&tris.map(|t| t.v[k])));
+            let got = surface_lanes(corners, f32x8::new(b1), f32x8::new(b2));
+            for (i, t) in tris.iter().enumerate() {
+                let want = t.surface_1(b1[i], b2[i]);
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(
+                    bits(got.point.lane(i)),
+                    bits(want.point),
+                    "round {round} lane {i}"
+                );
+                assert_eq!(
+                    bits(got.normal.lane(i)),
+                    bits(want.normal),
+                    "round {round} lane {i}"
+                );
+                assert_eq!(
+                    bits(got.err.lane(i)),
+                    bits(want.err),
+                    "round {round} lane {i}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn hit_inside_gives_t_barycentrics_and_normal() {

@@ -6,6 +6,7 @@ use wide::{f32x8, i32x8};
 
 use super::PacketRenderer;
 use crate::geometry::floor;
+use crate::geometry::triangle::surface_lanes;
 use crate::geometry::{PrimKind, Surface8, prim_code, split_code};
 use crate::math::Ray;
 use crate::math::packet::{Cmp8, HitPacket8, Mask8, Ray1, RayPacket8, Vec3x8};
@@ -90,6 +91,9 @@ impl PacketRenderer {
     /// (most of a coherent packet) take its surface in SIMD ([`PrimSet::surface_x8`]), a
     /// lone lane its own ([`PrimSet::surface_1`]); the material is read per lane.
     fn gather_lanes(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
+        if let Some(g) = self.gather_triangles(r, hit, lanes) {
+            return g;
+        }
         let mut point = [Vec3::ZERO; 8];
         let mut normal = [Vec3::Z; 8];
         let mut err = [Vec3::ZERO; 8];
@@ -188,6 +192,47 @@ impl PacketRenderer {
             kr: f32x8::new(k[3]),
             shine: f32x8::new(k[4]),
         }
+    }
+
+    /// [`PacketRenderer::gather_lanes`] when every lane of `lanes` hit a triangle of one
+    /// object (a mesh, whose lanes mostly hit different triangles): the triangles'
+    /// corners gathered into lanes and their surfaces computed at once
+    /// ([`surface_lanes`], lane for lane `surface_1`), the lanes outside `lanes` as
+    /// `gather_lanes` leaves them. `None` for any other packet.
+    fn gather_triangles(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Option<Gathered> {
+        let prims = &self.bvh.prims;
+        let codes = hit.prim.as_array();
+        let bits = lanes.bits();
+        let first = *codes.get(bits.trailing_zeros() as usize)?;
+        let object = prims.object_of_triangle(first)?;
+        let mut corners = [[Vec3::ZERO; 8]; 3];
+        for (i, &code) in codes.iter().enumerate() {
+            let code = if bits >> i & 1 == 1 { code } else { first };
+            let k = prims.triangle_of(code, object)?;
+            for (c, v) in corners.iter_mut().zip(prims.triangles[k].v) {
+                c[i] = v;
+            }
+        }
+        let s = surface_lanes(corners.map(|c| Vec3x8::from_lanes(&c)), hit.u, hit.v);
+        let m = &self.materials[object as usize];
+        let zero = f32x8::ZERO;
+        let on = |v: f32| lanes.select(f32x8::splat(v), zero);
+        let v = |a: Vec3x8, b: Vec3x8| Vec3x8::select(lanes, a, b);
+        let normal = v(s.normal, Vec3x8::splat(Vec3::Z));
+        // every normal is turned to face the incoming ray
+        let flipped = lanes & normal.dot(r.dir).gt(zero);
+        Some(Gathered {
+            point: v(s.point, Vec3x8::ZERO),
+            normal: Vec3x8::select(flipped, -normal, normal),
+            flipped,
+            err: v(s.err, Vec3x8::ZERO),
+            color: Vec3x8::new(on(m.color.x), on(m.color.y), on(m.color.z)),
+            ka: on(m.ka),
+            kd: on(m.kd),
+            ks: on(m.ks),
+            kr: on(m.kr),
+            shine: on(m.shine),
+        })
     }
 
     /// Camera packets: floor lanes whose f32 hit lies near a tile line (within
