@@ -159,6 +159,12 @@ impl std::error::Error for RaysError {}
 /// file's size: a little-endian u32 count, then per ray its origin and unit direction
 /// as six little-endian f32 (`benches/embree/gen_data.py`, `save_rays`).
 pub fn rays_in_file(path: &Path) -> Result<usize, RaysError> {
+    open_rays(path).map(|(n, _)| n)
+}
+
+/// The file at `path` opened past its ray count, and the count ([`rays_in_file`]'s
+/// checks).
+fn open_rays(path: &Path) -> Result<(usize, std::fs::File), RaysError> {
     use std::io::Read;
     let fail = |message: String| RaysError {
         file: path.display().to_string(),
@@ -187,20 +193,19 @@ pub fn rays_in_file(path: &Path) -> Result<usize, RaysError> {
             "ray count {n} needs {want} bytes (24 per ray after the count), the file has {len}"
         )));
     }
-    Ok(n as usize)
+    Ok((n as usize, f))
 }
 
 /// The rays of a `.rays` file of the Embree harness ([`rays_in_file`]), in its order
 /// (streamed: the file is never held whole beside the rays).
 pub fn read_rays(path: &Path, name: &'static str) -> Result<RaySet, RaysError> {
     use std::io::Read;
-    let n = rays_in_file(path)?;
+    let (n, f) = open_rays(path)?;
     let fail = |e: std::io::Error| RaysError {
         file: path.display().to_string(),
         message: format!("cannot read: {e}"),
     };
-    let mut f = std::io::BufReader::new(std::fs::File::open(path).map_err(fail)?);
-    f.read_exact(&mut [0u8; 4]).map_err(fail)?;
+    let mut f = std::io::BufReader::new(f);
     let (mut origin, mut dir) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let mut ray = [0u8; 24];
     for _ in 0..n {
@@ -894,14 +899,7 @@ pub fn run(
                 continue;
             }
             let rays = match ray_file(set) {
-                Some(path) => read_rays(
-                    &path,
-                    if set == "primary" {
-                        "primary"
-                    } else {
-                        "incoherent"
-                    },
-                )?,
+                Some(path) => read_rays(&path, set)?,
                 None if set == "primary" => primary_rays(1024, 1024),
                 None => incoherent_rays(1 << 20, 7),
             };

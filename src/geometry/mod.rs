@@ -483,21 +483,12 @@ impl PrimSet {
         }
     }
 
-    /// The scene object of triangle hit `code`; `None` for any other code.
+    /// The index in `triangles` of triangle hit `code` and its scene object; `None`
+    /// for any other code.
     #[inline]
-    pub fn object_of_triangle(&self, code: i32) -> Option<u32> {
+    pub fn triangle_and_object(&self, code: i32) -> Option<(usize, u32)> {
         match split_code(code)? {
-            (PrimKind::Triangle, i) => self.triangle_obj.get(i).copied(),
-            _ => None,
-        }
-    }
-
-    /// The index in `triangles` of triangle hit `code` when it belongs to scene object
-    /// `object`; `None` otherwise.
-    #[inline]
-    pub fn triangle_of(&self, code: i32, object: u32) -> Option<usize> {
-        match split_code(code)? {
-            (PrimKind::Triangle, i) if self.triangle_obj.get(i) == Some(&object) => Some(i),
+            (PrimKind::Triangle, i) => Some((i, *self.triangle_obj.get(i)?)),
             _ => None,
         }
     }

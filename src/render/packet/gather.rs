@@ -178,20 +178,8 @@ impl PacketRenderer {
                 }
             };
         }
-        // every normal is turned to face the incoming ray
-        let flipped = lanes & s.normal.dot(r.dir).gt(f32x8::ZERO);
-        Gathered {
-            point: s.point,
-            normal: Vec3x8::select(flipped, -s.normal, s.normal),
-            flipped,
-            err: s.err,
-            color: Vec3x8::from_lanes(&color),
-            ka: f32x8::new(k[0]),
-            kd: f32x8::new(k[1]),
-            ks: f32x8::new(k[2]),
-            kr: f32x8::new(k[3]),
-            shine: f32x8::new(k[4]),
-        }
+        let k = k.map(f32x8::new);
+        facing(r, lanes, s, Vec3x8::from_lanes(&color), k)
     }
 
     /// [`PacketRenderer::gather_lanes`] when every lane of `lanes` hit a triangle of one
@@ -204,35 +192,30 @@ impl PacketRenderer {
         let codes = hit.prim.as_array();
         let bits = lanes.bits();
         let first = *codes.get(bits.trailing_zeros() as usize)?;
-        let object = prims.object_of_triangle(first)?;
+        let (_, object) = prims.triangle_and_object(first)?;
         let mut corners = [[Vec3::ZERO; 8]; 3];
         for (i, &code) in codes.iter().enumerate() {
             let code = if bits >> i & 1 == 1 { code } else { first };
-            let k = prims.triangle_of(code, object)?;
+            let (k, of) = prims.triangle_and_object(code)?;
+            if of != object {
+                return None;
+            }
             for (c, v) in corners.iter_mut().zip(prims.triangles[k].v) {
                 c[i] = v;
             }
         }
         let s = surface_lanes(corners.map(|c| Vec3x8::from_lanes(&c)), hit.u, hit.v);
         let m = &self.materials[object as usize];
-        let zero = f32x8::ZERO;
-        let on = |v: f32| lanes.select(f32x8::splat(v), zero);
+        let on = |v: f32| lanes.select(f32x8::splat(v), f32x8::ZERO);
         let v = |a: Vec3x8, b: Vec3x8| Vec3x8::select(lanes, a, b);
-        let normal = v(s.normal, Vec3x8::splat(Vec3::Z));
-        // every normal is turned to face the incoming ray
-        let flipped = lanes & normal.dot(r.dir).gt(zero);
-        Some(Gathered {
+        let s = Surface8 {
             point: v(s.point, Vec3x8::ZERO),
-            normal: Vec3x8::select(flipped, -normal, normal),
-            flipped,
+            normal: v(s.normal, Vec3x8::splat(Vec3::Z)),
             err: v(s.err, Vec3x8::ZERO),
-            color: Vec3x8::new(on(m.color.x), on(m.color.y), on(m.color.z)),
-            ka: on(m.ka),
-            kd: on(m.kd),
-            ks: on(m.ks),
-            kr: on(m.kr),
-            shine: on(m.shine),
-        })
+        };
+        let color = Vec3x8::new(on(m.color.x), on(m.color.y), on(m.color.z));
+        let k = [m.ka, m.kd, m.ks, m.kr, m.shine].map(on);
+        Some(facing(r, lanes, s, color, k))
     }
 
     /// Camera packets: floor lanes whose f32 hit lies near a tile line (within
@@ -307,5 +290,26 @@ impl PacketRenderer {
             f32x8::new(color[1]),
             f32x8::new(color[2]),
         );
+    }
+}
+
+/// A level's [`Gathered`] from the lanes' surfaces, colours and material factors
+/// (ka, kd, ks, kr, shine): every normal turned to face the incoming ray, the lanes of
+/// `lanes` whose geometric normal was turned marked `flipped`.
+#[inline]
+fn facing(r: &RayPacket8, lanes: Mask8, s: Surface8, color: Vec3x8, k: [f32x8; 5]) -> Gathered {
+    let flipped = lanes & s.normal.dot(r.dir).gt(f32x8::ZERO);
+    let [ka, kd, ks, kr, shine] = k;
+    Gathered {
+        point: s.point,
+        normal: Vec3x8::select(flipped, -s.normal, s.normal),
+        flipped,
+        err: s.err,
+        color,
+        ka,
+        kd,
+        ks,
+        kr,
+        shine,
     }
 }
