@@ -87,9 +87,11 @@ impl PacketRenderer {
         }
     }
 
-    /// [`PacketRenderer::gather`] for lanes off the floor: lanes that share a primitive
-    /// (most of a coherent packet) take its surface in SIMD ([`PrimSet::surface_x8`]), a
-    /// lone lane its own ([`PrimSet::surface_1`]); the material is read per lane.
+    /// [`PacketRenderer::gather`] for lanes off the floor: lanes that all hit triangles
+    /// of one object take their surfaces in SIMD ([`PacketRenderer::gather_triangles`]);
+    /// otherwise lanes that share a primitive (most of a coherent packet) take its surface
+    /// in SIMD ([`PrimSet::surface_x8`]), a lone lane its own ([`PrimSet::surface_1`]),
+    /// and the material is read per lane.
     fn gather_lanes(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
         if let Some(g) = self.gather_triangles(r, hit, lanes) {
             return g;
