@@ -195,10 +195,13 @@ impl PacketRenderer {
         let bits = lanes.bits();
         let first = *codes.get(bits.trailing_zeros() as usize)?;
         let (_, object) = prims.triangle_and_object(first)?;
+        // lanes outside `lanes` keep zero corners: their surfaces are replaced below
         let mut corners = [[Vec3::ZERO; 8]; 3];
-        for (i, &code) in codes.iter().enumerate() {
-            let code = if bits >> i & 1 == 1 { code } else { first };
-            let (k, of) = prims.triangle_and_object(code)?;
+        let mut rest = bits;
+        while rest != 0 {
+            let i = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let (k, of) = prims.triangle_and_object(codes[i])?;
             if of != object {
                 return None;
             }
