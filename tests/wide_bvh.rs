@@ -24,6 +24,7 @@ use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::traverse_x8::LANES_MIN_NODES;
+use octaray::bvh::wide::PREFETCH_FROM;
 use octaray::bvh::wide::walk_x8::{FRUSTUM_SPREAD, LANES_SPREAD};
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::Watertight;
@@ -357,6 +358,17 @@ fn nan_rays_never_hit() {
         assert!(!h.is_hit(), "NaN ray {r:?} hit {h:?}");
         assert!(!bvh.occluded_1::<Watertight>(&r, f32::INFINITY, &mut steps));
     }
+}
+
+/// The torus tests above walk a tree that prefetches, the small scenes below one that
+/// does not: both kinds of walk are held to the binary walk's answers.
+#[test]
+fn only_trees_past_the_prefetch_size_prefetch() {
+    let big = torus_bvh();
+    assert!(big.wide.walked_bytes() > PREFETCH_FROM && big.wide.prefetches);
+    let small = Bvh::build(PrimSet::from_triangles(torus(24, 12)));
+    assert!(small.wide.walked_bytes() <= PREFETCH_FROM && !small.wide.prefetches);
+    assert!(!Bvh::build(PrimSet::default()).wide.prefetches);
 }
 
 #[test]

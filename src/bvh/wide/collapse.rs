@@ -11,7 +11,7 @@
 
 use wide::f32x8;
 
-use super::{MERGE_MAX, TriBlock, WideBvh, WideNode};
+use super::{MERGE_MAX, PREFETCH_FROM, TriBlock, WideBvh, WideNode};
 use crate::bvh::STACK_SIZE;
 use crate::bvh::memory::{huge_vec, prefetch_lines};
 use crate::bvh::node::BvhNode;
@@ -262,6 +262,7 @@ impl WideBvh {
             w.push_blocks(nodes, prims, t);
         }
         debug_assert_eq!(w.blocks.len(), n_blocks as usize);
+        w.prefetches = w.walked_bytes() > PREFETCH_FROM;
         w
     }
 
