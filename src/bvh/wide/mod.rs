@@ -110,14 +110,15 @@ pub struct WideBvh {
     /// Length of the diagonal of the root box (0 when empty): the packet walk's origin
     /// spread limit scales with it (`walk_x8::Frustum::new`).
     pub diagonal: f32,
-    /// Whether the walks prefetch the children they are about to visit: only for
-    /// trees larger than [`PREFETCH_FROM`] (a smaller tree stays in the cache, and the
-    /// prefetches would be instructions and mispredicted loop exits for nothing).
+    /// Whether the single-ray walks prefetch the children they are about to visit:
+    /// only in trees larger than [`PREFETCH_FROM`] (a smaller tree stays in the cache,
+    /// and the prefetches would be instructions and mispredicted loop exits for
+    /// nothing). The frustum walks always prefetch the children they push.
     pub prefetches: bool,
 }
 
-/// Size of the walked arrays (wide nodes and triangle blocks) from which the walks
-/// prefetch children: incoherent single rays on tori of 6 000 triangles (0.5 MiB
+/// Size of the walked arrays (wide nodes and triangle blocks) from which the
+/// single-ray walks prefetch children: incoherent single rays on tori of 6 000 triangles (0.5 MiB
 /// walked) run faster without, from 10 000 (0.9 MiB) with (`benches/README.md`).
 pub const PREFETCH_FROM: usize = 768 << 10;
 
@@ -146,13 +147,9 @@ impl WideBvh {
         }
     }
 
-    /// [`WideBvh::prefetch`] of the children `bits` of `node`, when the tree is large
-    /// enough to need it ([`WideBvh::prefetches`]).
+    /// [`WideBvh::prefetch`] of the children `bits` of `node`.
     #[inline(always)]
     pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, whole: bool) {
-        if !self.prefetches {
-            return;
-        }
         while bits != 0 {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
