@@ -118,8 +118,9 @@ pub struct WideBvh {
 }
 
 /// Size of the walked arrays (wide nodes and triangle blocks) from which the
-/// single-ray walks prefetch children: incoherent single rays on tori of 6 000 triangles (0.5 MiB
-/// walked) run faster without, from 10 000 (0.9 MiB) with (`benches/README.md`).
+/// single-ray walks prefetch children: incoherent single rays on tori of 6 000
+/// triangles (0.5 MiB walked) run faster without, from 10 000 (0.9 MiB) with
+/// (`benches/README.md`).
 pub const PREFETCH_FROM: usize = 768 << 10;
 
 /// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
