@@ -148,6 +148,15 @@ impl WideBvh {
         }
     }
 
+    /// The single-ray walks' [`WideBvh::prefetch_children`]: only in trees that need
+    /// it ([`WideBvh::prefetches`]).
+    #[inline(always)]
+    pub(super) fn prefetch_children_1(&self, node: &WideNode, bits: u32) {
+        if self.prefetches {
+            self.prefetch_children(node, bits, false);
+        }
+    }
+
     /// [`WideBvh::prefetch`] of the children `bits` of `node`.
     #[inline(always)]
     pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, whole: bool) {

@@ -239,9 +239,7 @@ impl Bvh {
             steps.boxes += 1;
             let (m, near) = wr.boxes.test(&node.bounds, hit.t);
             let mut bits = m.bits();
-            if w.prefetches {
-                w.prefetch_children(node, bits, false);
-            }
+            w.prefetch_children_1(node, bits);
             if bits != 0 {
                 let first = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -443,9 +441,7 @@ impl Bvh {
             let node: &WideNode = &w.nodes[cur.child as usize];
             steps.boxes += 1;
             let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
-            if w.prefetches {
-                w.prefetch_children(node, bits, false);
-            }
+            w.prefetch_children_1(node, bits);
             let mut leaves = 0u32;
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;

@@ -192,23 +192,22 @@ impl PacketRenderer {
     fn gather_triangles(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Option<Gathered> {
         let prims = &self.bvh.prims;
         let codes = hit.prim.as_array();
-        let bits = lanes.bits();
-        let first = *codes.get(bits.trailing_zeros() as usize)?;
-        let (_, object) = prims.triangle_and_object(first)?;
         // lanes outside `lanes` keep zero corners: their surfaces are replaced below
         let mut corners = [[Vec3::ZERO; 8]; 3];
-        let mut rest = bits;
+        let mut object = None;
+        let mut rest = lanes.bits();
         while rest != 0 {
             let i = rest.trailing_zeros() as usize;
             rest &= rest - 1;
             let (k, of) = prims.triangle_and_object(codes[i])?;
-            if of != object {
+            if *object.get_or_insert(of) != of {
                 return None;
             }
             for (c, v) in corners.iter_mut().zip(prims.triangles[k].v) {
                 c[i] = v;
             }
         }
+        let object = object?;
         let s = surface_lanes(corners.map(|c| Vec3x8::from_lanes(&c)), hit.u, hit.v);
         let m = &self.materials[object as usize];
         let on = |v: f32| lanes.select(f32x8::splat(v), f32x8::ZERO);
