@@ -448,6 +448,7 @@ impl PrimSet {
     }
 
     /// Bounds of a BVH primitive, clamped to ±[`BOUNDS_LIMIT`].
+    #[inline(always)]
     pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
         let b = match kind {
             PrimKind::Sphere => self.spheres[i].bounds(),

@@ -798,7 +798,26 @@ fn looks_integral(s: &str) -> bool {
 /// A triangle is degenerate when its edge vectors are (nearly) parallel: |e1 × e2| is
 /// below 1e-12 · |e1| · |e2| (the sine of its sharpest angle under 1e-12), or an edge
 /// has length zero. Such a triangle has no well-defined normal and is never hit.
+///
+/// Compared in squares (no square root: every mesh triangle is checked three times on
+/// its way in) where the squared edge lengths lie in [2⁻⁴⁵⁰, 2⁴⁵⁰], so that no product
+/// overflows or leaves the normal range; outside it (a zero or NaN edge, coordinates
+/// past 2²²⁵) in lengths, as [`is_degenerate_triangle_by_lengths`].
 pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
+    const SAFE: std::ops::RangeInclusive<f64> =
+        f64::from_bits((1023 - 450) << 52)..=f64::from_bits((1023 + 450) << 52);
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let (a2, b2) = (e1.length_squared(), e2.length_squared());
+    if SAFE.contains(&a2) && SAFE.contains(&b2) {
+        // |e1 × e2| <= |e1|·|e2| <= 2⁴⁵⁰: finite, no component overflows
+        return e1.cross(e2).length_squared() <= 1e-24 * a2 * b2;
+    }
+    is_degenerate_triangle_by_lengths(v)
+}
+
+/// [`is_degenerate_triangle`] in lengths, at every scale.
+pub fn is_degenerate_triangle_by_lengths(v: &[DVec3; 3]) -> bool {
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];
     let n = e1.cross(e2).length();
@@ -810,6 +829,55 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The squared form of the degenerate test gives the lengths' answer at every scale
+    /// (both sides of 2^±225 and the guard's edges), on ordinary triangles, slivers near
+    /// the 1e-12 limit, zero and NaN edges.
+    #[test]
+    fn degenerate_triangles_in_squares_agree_with_lengths() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut checked, mut degenerate) = (0, 0);
+        for k in (-600..=600)
+            .step_by(25)
+            .chain([-451, -450, -449, -225, -224, 224, 225, 226, 449, 450, 451])
+        {
+            let scale = 2f64.powi(k);
+            for _ in 0..20 {
+                let p = DVec3::new(unit(), unit(), unit());
+                let (a, b) = (
+                    DVec3::new(unit(), unit(), unit()),
+                    DVec3::new(unit(), unit(), unit()),
+                );
+                // a sliver: b bent off a by sin = 1e-12 · (1 ± 1e-6)
+                let off = a.cross(b).cross(a).normalize() * a.length();
+                let mut cases = vec![[p, p + a, p + b], [p, p + a, p], [p, p + a, p + a * 2.0]];
+                for f in [1.0 - 1e-6, 1.0 + 1e-6] {
+                    cases.push([p, p + a, p + a + off * (1e-12 * f)]);
+                }
+                cases.push([p, p + a, DVec3::new(f64::NAN, 0.0, 0.0)]);
+                for c in cases {
+                    let v = c.map(|q| q * scale);
+                    assert_eq!(
+                        is_degenerate_triangle(&v),
+                        is_degenerate_triangle_by_lengths(&v),
+                        "{v:?}"
+                    );
+                    checked += 1;
+                    degenerate += is_degenerate_triangle(&v) as usize;
+                }
+            }
+        }
+        assert!(
+            degenerate > checked / 3 && degenerate < checked,
+            "{degenerate} of {checked}"
+        );
+    }
 
     /// Triangles are counted over the whole scene (triangle objects, 8 per prism, mesh
     /// triangles) and refused past the limit at the object that passes it (the packet
