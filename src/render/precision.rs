@@ -104,7 +104,7 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
     }
     // ranked by (reach beyond the range, then ratio): the lowest wins. The ratio is
     // compared in squares, in f64 (where an f32 value's square is exact): no square
-    // root per primitive, a 1M-triangle mesh is scanned in milliseconds
+    // root or out-of-line call per primitive
     let mut smallest: Option<((f32, f64), PrimKind, usize)> = None;
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
