@@ -103,8 +103,9 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
         (reach, b.hi - b.lo, (b.lo + b.hi) * 0.5)
     }
     // ranked by (reach beyond the range, then ratio): the lowest wins. The ratio is
-    // compared in squares, in f64 (where an f32 value's square is exact): no square
-    // root or out-of-line call per primitive
+    // compared in squares, in f64 (where an f32 value's square is exact, and sizes
+    // below 1e-19 or distances past 1e19 neither vanish nor overflow): no square root
+    // or out-of-line call per primitive
     let mut smallest: Option<((f32, f64), PrimKind, usize)> = None;
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
@@ -132,11 +133,15 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
+    use crate::geometry::floor::Floor32;
     use crate::geometry::triangle::Triangle32;
 
     /// The ranking in squares picks the primitive that sizes and distances in f32
-    /// (square roots and a division per primitive) pick, with the same figures, on
-    /// triangles whose ratios of size to distance span a decade, at distances over six.
+    /// (square roots and a division per primitive) pick, with the same figures: over
+    /// triangles whose ratios of size to distance span a decade at distances over six,
+    /// with and without a floor far below the camera (which then sets the distance of
+    /// the triangles near the camera), an exact tie (the first wins) and, in some
+    /// rounds, a triangle reaching past the f32 range (it wins whatever its ratio).
     #[test]
     fn smallest_detail_in_squares_picks_what_lengths_pick() {
         let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
@@ -146,8 +151,8 @@ mod tests {
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
-        for round in 0..20 {
-            let tris: Vec<Triangle32> = (0..500)
+        for round in 0..40 {
+            let mut tris: Vec<Triangle32> = (0..500)
                 .map(|_| {
                     // ratios over one decade, distances over six: the ratio decides
                     let distance = 10f64.powf(unit() * 6.0);
@@ -158,25 +163,49 @@ mod tests {
                     Triangle32::new(&v, DVec3::ZERO)
                 })
                 .collect();
-            let prims = PrimSet::from_triangles(tris);
-            // the ranking by lengths, in f32
-            let mut best: Option<(f32, usize)> = None;
+            if round % 4 == 3 {
+                let far = f64::from(F32_RANGE) * 2.0;
+                let v = [0.0, 1.0, 2.0].map(|k| DVec3::new(far, k * 1e6, far));
+                tris.insert(100, Triangle32::new(&v, DVec3::ZERO));
+            }
+            let mut prims = PrimSet::from_triangles(tris);
+            prims.triangle_obj = (0..prims.triangles.len() as u32).collect();
+            if round % 2 == 1 {
+                // the floor 1e4 below the camera: the farther of it and the camera
+                prims.floor = Some(Floor32::new(DVec3::new(0.0, 0.0, 1e4)));
+            }
+            // the ranking by lengths, in f32, as it was
+            let distance = |c: Vec3| {
+                let floor = prims.floor.as_ref().map_or(0.0, |f| {
+                    Vec3::new(c.x.clamp(f.x0, f.x1), c.y.clamp(f.y0, f.y1), f.z).distance(c)
+                });
+                c.length().max(floor)
+            };
+            let mut best: Option<((f32, f32), usize)> = None;
             for i in 0..prims.triangles.len() {
                 let b = prims.bounds(PrimKind::Triangle, i);
-                let ratio = (b.hi - b.lo).length() / ((b.lo + b.hi) * 0.5).length();
-                if best.is_none_or(|(r, _)| ratio < r) {
-                    best = Some((ratio, i));
+                let reach = b.lo.abs().max(b.hi.abs()).max_element();
+                let ratio = (b.hi - b.lo).length() / distance((b.lo + b.hi) * 0.5);
+                let rank = (-(reach - F32_RANGE).max(0.0), ratio);
+                if best.is_none_or(|(r, _)| rank < r) {
+                    best = Some((rank, i));
                 }
             }
             let (_, i) = best.expect("triangles");
             let b = prims.bounds(PrimKind::Triangle, i);
             let d = smallest_detail(&prims).expect("triangles");
+            assert_eq!(d.object, i as u32, "round {round}");
             assert_eq!(d.size, f64::from((b.hi - b.lo).length()), "round {round}");
             assert_eq!(
                 d.distance,
-                f64::from(((b.lo + b.hi) * 0.5).length()),
+                f64::from(distance((b.lo + b.hi) * 0.5)),
                 "round {round}"
             );
+            assert_eq!(d.beyond_range(), round % 4 == 3, "round {round}");
+            // an exact tie: a copy of the winner, later in the array, loses
+            prims.triangles.push(prims.triangles[i]);
+            prims.triangle_obj.push(u32::MAX);
+            assert_eq!(smallest_detail(&prims).map(|d| d.object), Some(i as u32));
         }
     }
 }
