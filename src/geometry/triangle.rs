@@ -634,6 +634,7 @@ impl TriangleKernel for Watertight {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::test_rng::Xorshift;
 
     const TRI: [DVec3; 3] = [
         DVec3::new(0.0, 0.0, 0.0),
@@ -646,13 +647,8 @@ mod tests {
     /// ones whose normal overflows or underflows f32 (fallback too), tiny and far ones.
     #[test]
     fn surfaces_of_eight_triangles_are_each_triangles_own() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move |scale: f32| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            ((seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
-        };
+        let mut rng = Xorshift(0x2545_f491_4f6c_dd1d);
+        let mut rnd = move |scale: f32| (rng.f32() * 2.0 - 1.0) * scale;
         let v3 = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
         for round in 0..200 {
             let scale = [1.0, 1e-20, 1e20, 3e4][round % 4];

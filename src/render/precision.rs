@@ -94,7 +94,6 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
         })
     };
     let d2 = |v: Vec3| v.as_dvec3().length_squared();
-    let floor_distance2 = |c: Vec3| d2(to_floor(c));
     // a primitive's reach (largest coordinate), size (the diagonal) and centre
     #[inline(always)]
     fn measure(prims: &PrimSet, kind: PrimKind, i: usize) -> (f32, Vec3, Vec3) {
@@ -110,7 +109,7 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
     for kind in PrimKind::BVH_KINDS {
         for i in 0..prims.len(kind) {
             let (reach, size, c) = measure(prims, kind, i);
-            let distance2 = d2(c).max(floor_distance2(c));
+            let distance2 = d2(c).max(d2(to_floor(c)));
             let rank = (-(reach - F32_RANGE).max(0.0), d2(size) / distance2);
             if smallest.is_none_or(|(r, _, _)| rank < r) {
                 smallest = Some((rank, kind, i));
@@ -135,6 +134,7 @@ mod tests {
     use super::*;
     use crate::geometry::floor::Floor32;
     use crate::geometry::triangle::Triangle32;
+    use crate::math::test_rng::Xorshift;
 
     /// The ranking in squares picks the primitive that sizes and distances in f32
     /// (square roots and a division per primitive) pick, with the same figures: over
@@ -144,13 +144,8 @@ mod tests {
     /// rounds, a triangle reaching past the f32 range (it wins whatever its ratio).
     #[test]
     fn smallest_detail_in_squares_picks_what_lengths_pick() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut unit = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut unit = move || rng.f64();
         for round in 0..40 {
             let mut tris: Vec<Triangle32> = (0..500)
                 .map(|_| {

@@ -804,7 +804,7 @@ fn looks_integral(s: &str) -> bool {
 /// overflows and the limit 1e-24·|e1|²·|e2|² stays a normal number (a cross product
 /// that underflows is far below it, degenerate either way). Outside it (a zero, NaN or
 /// infinite edge, an edge longer than 2²²⁵ or shorter than 2⁻²²⁵) in lengths, as
-/// [`is_degenerate_triangle_by_lengths`]. The reference's triangle test uses it too.
+/// `is_degenerate_triangle_by_lengths`. The reference's triangle test uses it too.
 pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
     const SAFE: std::ops::RangeInclusive<f64> =
         f64::from_bits((1023 - 450) << 52)..=f64::from_bits((1023 + 450) << 52);
@@ -819,7 +819,7 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
 }
 
 /// [`is_degenerate_triangle`] in lengths, at every scale.
-pub fn is_degenerate_triangle_by_lengths(v: &[DVec3; 3]) -> bool {
+fn is_degenerate_triangle_by_lengths(v: &[DVec3; 3]) -> bool {
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];
     let n = e1.cross(e2).length();
@@ -831,19 +831,15 @@ pub fn is_degenerate_triangle_by_lengths(v: &[DVec3; 3]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::test_rng::Xorshift;
 
     /// The squared form of the degenerate test gives the lengths' answer at every scale
     /// (edges from 2⁻⁶⁰⁰ to 2⁶⁰⁰, and at the guard's edges, 2^±225), on ordinary
     /// triangles, slivers near the 1e-12 limit, zero and NaN edges.
     #[test]
     fn degenerate_triangles_in_squares_agree_with_lengths() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut unit = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = Xorshift(0x2545_f491_4f6c_dd1d);
+        let mut unit = move || rng.f64() - 0.5;
         let (mut checked, mut degenerate) = (0, 0);
         for k in (-600..=600)
             .step_by(25)

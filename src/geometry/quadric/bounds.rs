@@ -365,6 +365,7 @@ pub(super) fn open_axis_bounds(k: &[f64; 10], box_lo: DVec3, box_hi: DVec3) -> O
 mod tests {
     use super::*;
     use crate::geometry::quadric::{Quadric32, along};
+    use crate::math::test_rng::Xorshift;
     use crate::scene::Quadric;
 
     fn quadric(coef: [f64; 10], min: [f64; 3], size: [f64; 3]) -> Quadric {
@@ -456,13 +457,8 @@ mod tests {
     /// origin or far away); and most such quadrics get bounds.
     #[test]
     fn section_bounds_hold_every_surface_point() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut rand = move || rng.f64() * 2.0 - 1.0;
         let (mut bounded, mut points) = (0, 0);
         for trial in 0..400 {
             let mut coef = [0.0; 10];

@@ -129,18 +129,14 @@ impl Chain {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::test_rng::Xorshift;
 
     /// Chains far longer than [`CHAIN_LEVELS`] fold to the f64 fold of the same levels,
     /// within f32 rounding; short ones exactly as the plain fold.
     #[test]
     fn composed_chains_fold_as_the_plain_fold() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = Xorshift(0x2545_f491_4f6c_dd1d);
+        let mut rnd = move || rng.f32();
         for (len, kr_max) in [
             (3, 1.0),
             (64, 1.0),
