@@ -233,6 +233,12 @@ pub const FLOOR_TIE: f32 = 1.0 - 64.0 * f32::EPSILON;
 /// order them, and [`PrimSet::floor_first`] decides.
 pub const FLOOR_BAND: f32 = 1.0 + 64.0 * f32::EPSILON;
 
+/// How far past the floor (relative to its t) a closest-hit walk looks for objects
+/// ([`PrimSet::bound_by_floor_x8`]): an object hit beyond this loses to the floor in
+/// [`PrimSet::intersect_floor_x8`] (its tie window, [`FLOOR_TIE`], ends 192 ulps short
+/// of it, far more than the products' rounding).
+pub const FLOOR_BOUND: f32 = 1.0 + 256.0 * f32::EPSILON;
+
 /// How far (relative) the f64 root may lie from the f32 kernel's t and still be taken
 /// as the same surface crossing by [`PrimSet::floor_first`].
 const SAME_ROOT: f64 = 1e-3;
@@ -612,6 +618,25 @@ impl PrimSet {
                 PrimKind::Floor => self.intersect_floor_x8(r, active, hit),
             }
         }
+    }
+
+    /// Bounds the closest-hit search of the lanes of `active` without a hit yet at
+    /// [`FLOOR_BOUND`] times their floor hit: a walk then skips what lies beyond the
+    /// floor (the half of a mesh the floor cuts off, seen through it), which would lose
+    /// to the floor anyway. `hit.t` of such a lane is then a bound without a primitive;
+    /// the floor's own test after the walk ([`PrimSet::intersect_floor_x8`]) meets the
+    /// same floor hit below it and records it, so every lane ends with the hit of the
+    /// unbounded query, bit for bit.
+    #[inline]
+    pub fn bound_by_floor_x8(&self, r: &RayPacket8, active: Mask8, hit: &mut HitPacket8) {
+        let Some(f) = &self.floor else { return };
+        let free = active.and_not(hit.hit_mask());
+        if free.none() {
+            return;
+        }
+        let (m, t) = f.intersect_x8(r, free, hit.t);
+        let bound = t * f32x8::splat(FLOOR_BOUND);
+        hit.t = m.select(bound.fast_min(hit.t), hit.t);
     }
 
     /// The floor's part of [`PrimSet::intersect_x8`] (the ordering rules of
