@@ -181,7 +181,9 @@ impl Bvh {
         if active.none() {
             return;
         }
-        self.prims.bound_by_floor_x8(r, active, hit);
+        if !self.nodes.is_empty() {
+            self.prims.bound_by_floor_x8(r, active, hit);
+        }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
             let act = active & finite_lanes(r);
             let how_far = match shared_octant(r, act) {

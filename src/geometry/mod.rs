@@ -626,7 +626,8 @@ impl PrimSet {
     /// to the floor anyway. `hit.t` of such a lane is then a bound without a primitive;
     /// the floor's own test after the walk ([`PrimSet::intersect_floor_x8`]) meets the
     /// same floor hit below it and records it, so every lane ends with the hit of the
-    /// unbounded query, bit for bit.
+    /// unbounded query, bit for bit. (The walks skip it in an empty tree, where it
+    /// would bound nothing.)
     #[inline]
     pub fn bound_by_floor_x8(&self, r: &RayPacket8, active: Mask8, hit: &mut HitPacket8) {
         let Some(f) = &self.floor else { return };

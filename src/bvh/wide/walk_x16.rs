@@ -122,11 +122,13 @@ impl Bvh {
         steps: &mut Steps,
     ) {
         let (half, fin, frustum) = self.frustum_x16(r, active);
-        let mut h = hit.halves();
-        for (k, hk) in h.iter_mut().enumerate() {
-            self.prims.bound_by_floor_x8(&r.halves[k], half[k], hk);
+        if !self.nodes.is_empty() {
+            let mut h = hit.halves();
+            for (k, hk) in h.iter_mut().enumerate() {
+                self.prims.bound_by_floor_x8(&r.halves[k], half[k], hk);
+            }
+            *hit = HitPacket16::from_halves(h);
         }
-        *hit = HitPacket16::from_halves(h);
         if frustum.as_ref().is_err_and(|&scattered| scattered) {
             self.intersect_x16_lanes::<T>(r, half, hit, steps);
             return;
