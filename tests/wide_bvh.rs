@@ -850,9 +850,11 @@ fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds()
 /// Closest-hit packets over the floor (`PrimSet::bound_by_floor_x8`): a torus standing
 /// half below the floor, seen from above, as in the benchmark frames. A lane that meets
 /// the floor looks for objects only a little past it, yet every lane gets what the
-/// unbounded single-ray walk (the floor tested after the tree) gives it, bit for bit;
-/// and the packet walks skip the half below the floor: far fewer node tests than the
-/// same packets over the same torus without a floor.
+/// unbounded single-ray walk (the floor tested after the tree) gives it, bit for bit, on
+/// every route a packet can take (the frustum walk, the binary packet walk, the lanes'
+/// single-ray walks), with some lanes starting from a finite bound; and the frustum walk
+/// skips the half below the floor: far fewer node tests than the same packets over the
+/// same torus without a floor.
 #[test]
 fn packets_bounded_by_the_floor_get_the_unbounded_hits() {
     let mut prims = PrimSet::from_triangles(torus(96, 48));
@@ -860,50 +862,90 @@ fn packets_bounded_by_the_floor_get_the_unbounded_hits() {
     let floor = Bvh::build(prims);
     let bare = torus_bvh();
     let rays = rays_of(&primary_rays(128, 128));
+    // lanes 3 and 6 start from a finite bound: one short of most hits, one beyond them
+    let t0 = f32x8::new(std::array::from_fn(|l| match l {
+        3 => 2.0,
+        6 => 4.0,
+        _ => f32::INFINITY,
+    }));
     let (mut s_floor, mut s_bare, mut s_single) =
         (Steps::default(), Steps::default(), Steps::default());
     let (mut on_floor, mut on_torus) = (0, 0);
-    for (pi, chunk) in rays.chunks(8).enumerate() {
-        let lanes =
-            |f: fn(&Ray1) -> Vec3| Vec3x8::from_lanes(&std::array::from_fn(|l| f(&chunk[l])));
-        let p = RayPacket8::new(lanes(|r| r.origin), lanes(|r| r.dir), Mask8::ALL);
-        let mut h = HitPacket8::new(f32x8::splat(f32::INFINITY));
-        floor.intersect_x8::<Watertight>(&p, Mask8::ALL, &mut h, &mut s_floor);
-        let mut hb = HitPacket8::new(f32x8::splat(f32::INFINITY));
-        bare.intersect_x8::<Watertight>(&p, Mask8::ALL, &mut hb, &mut s_bare);
-        let (t, u, v) = (h.t.to_array(), h.u.to_array(), h.v.to_array());
-        for l in 0..8 {
-            let want = closest(&floor, &p.ray(l), f32::INFINITY, false, &mut s_single);
-            assert_eq!(
-                (
-                    h.prim_lane(l),
-                    t[l].to_bits(),
-                    u[l].to_bits(),
-                    v[l].to_bits()
+    // the frustum walk (the renderer's limit), the binary packet walk (spread < 0), every
+    // packet of shared signs through the frustum (∞), and the lanes' own walks
+    for route in 0..4 {
+        for (pi, chunk) in rays.chunks(8).enumerate() {
+            let lanes =
+                |f: fn(&Ray1) -> Vec3| Vec3x8::from_lanes(&std::array::from_fn(|l| f(&chunk[l])));
+            let p = RayPacket8::new(lanes(|r| r.origin), lanes(|r| r.dir), Mask8::ALL);
+            let mut h = HitPacket8::new(t0);
+            let steps = &mut s_floor;
+            match route {
+                0 => floor.intersect_x8_spread::<Watertight>(
+                    &p,
+                    Mask8::ALL,
+                    FRUSTUM_SPREAD,
+                    &mut h,
+                    steps,
                 ),
-                (
-                    want.prim,
-                    want.t.to_bits(),
-                    want.u.to_bits(),
-                    want.v.to_bits()
+                1 => floor.intersect_x8_spread::<Watertight>(&p, Mask8::ALL, -1.0, &mut h, steps),
+                2 => floor.intersect_x8_spread::<Watertight>(
+                    &p,
+                    Mask8::ALL,
+                    f32::INFINITY,
+                    &mut h,
+                    steps,
                 ),
-                "packet {pi} lane {l}: {:?}",
-                p.ray(l)
-            );
-            match want.is_hit().then(|| split_code(want.prim).unwrap().0) {
-                Some(PrimKind::Floor) => on_floor += 1,
-                Some(_) => on_torus += 1,
-                None => {}
+                _ => floor.intersect_x8_lanes::<Watertight>(&p, Mask8::ALL, &mut h, steps),
+            }
+            if route == 0 {
+                let mut hb = HitPacket8::new(t0);
+                bare.intersect_x8_spread::<Watertight>(
+                    &p,
+                    Mask8::ALL,
+                    FRUSTUM_SPREAD,
+                    &mut hb,
+                    &mut s_bare,
+                );
+            }
+            let (t, u, v) = (h.t.to_array(), h.u.to_array(), h.v.to_array());
+            for l in 0..8 {
+                let want = closest(&floor, &p.ray(l), t0.to_array()[l], false, &mut s_single);
+                assert_eq!(
+                    (
+                        h.prim_lane(l),
+                        t[l].to_bits(),
+                        u[l].to_bits(),
+                        v[l].to_bits()
+                    ),
+                    (
+                        want.prim,
+                        want.t.to_bits(),
+                        want.u.to_bits(),
+                        want.v.to_bits()
+                    ),
+                    "route {route} packet {pi} lane {l}: {:?}",
+                    p.ray(l)
+                );
+                if route == 0 {
+                    match want.is_hit().then(|| split_code(want.prim).unwrap().0) {
+                        Some(PrimKind::Floor) => on_floor += 1,
+                        Some(_) => on_torus += 1,
+                        None => {}
+                    }
+                }
             }
         }
+        if route == 0 {
+            // rays of both kinds, and many floor rays that go on to the torus below it
+            assert!(
+                on_floor > rays.len() / 4 && on_torus > rays.len() / 8,
+                "{on_floor} {on_torus}"
+            );
+            assert!(
+                s_floor.boxes * 10 < s_bare.boxes * 8,
+                "node tests with the floor {s_floor:?}, without {s_bare:?}"
+            );
+        }
     }
-    // rays of both kinds, and many floor rays that go on to the torus below it
-    assert!(
-        on_floor > rays.len() / 4 && on_torus > rays.len() / 8,
-        "{on_floor} {on_torus}"
-    );
-    assert!(
-        s_floor.boxes * 10 < s_bare.boxes * 8,
-        "node tests with the floor {s_floor:?}, without {s_bare:?}"
-    );
 }

@@ -636,6 +636,8 @@ impl PrimSet {
             return;
         }
         let (m, t) = f.intersect_x8(r, free, hit.t);
+        // (a subnormal t would round its bound back to itself, or to a few ulps past it)
+        let m = m & t.ge(f32x8::splat(f32::MIN_POSITIVE));
         let bound = t * f32x8::splat(FLOOR_BOUND);
         hit.t = m.select(bound.fast_min(hit.t), hit.t);
     }
