@@ -475,7 +475,6 @@ impl Bvh {
             r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
             return true;
         }
-        let [o, _, inv] = r.rays();
         let mut t_hi = t_hi;
         let mut changed = false;
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
@@ -488,7 +487,9 @@ impl Bvh {
                 if m.none() {
                     continue;
                 }
-                // only lanes that pass the triangle's binary leaf box (module doc)
+                // only lanes that pass the triangle's binary leaf box (module doc); the
+                // rays fetched here, where a lane hit (most candidates hit none)
+                let [o, _, inv] = r.rays();
                 let m = block_leaf_box(b, j)
                     .intersect_lanes(o, inv, m, P::hit_t(hit))
                     .0;
@@ -555,7 +556,6 @@ impl Bvh {
         use simd::{LaneMask as _, Lanes as _};
         let w = &self.wide;
         let t_hi = max_in(t_max, act);
-        let [o, _, inv] = r.rays();
         let mut left = act;
         let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
         stack.push(SlotRef::ROOT);
@@ -589,6 +589,7 @@ impl Bvh {
                         let (m, t, _, _) = r.triangle::<T>(b, j, left, t_max);
                         let m = m & t.lt(t_max);
                         if m.any() {
+                            let [o, _, inv] = r.rays();
                             let blocked = block_leaf_box(b, j).intersect_lanes(o, inv, m, t_max).0;
                             left = left.and_not(blocked);
                         }
