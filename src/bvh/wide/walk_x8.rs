@@ -438,8 +438,10 @@ impl Bvh {
                     cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
                     continue 'walk;
                 }
-            } else if self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps) {
-                t_hi = max_in(P::hit_t(hit), act);
+            } else if let Some(t) =
+                self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps)
+            {
+                t_hi = t;
             }
             // pop the next subtree some lane may still enter before its nearest hit
             loop {
@@ -454,7 +456,8 @@ impl Bvh {
         }
     }
 
-    /// A leaf of the wide packet walk; whether any lane's hit changed.
+    /// A leaf of the wide packet walk; when some lane's hit changed, the lanes' largest
+    /// nearest hit.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn leaf_intersect<P: WidePacket, T: TriangleKernel, const OCT: u32>(
@@ -466,17 +469,17 @@ impl Bvh {
         t_hi: f32,
         hit: &mut P::Hit,
         steps: &mut Steps,
-    ) -> bool {
+    ) -> Option<f32> {
         use simd::LaneMask as _;
         let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
         let first = leaf.child as usize;
         if kind != PrimKind::Triangle {
             steps.leaf(kind, count, act.count());
             r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
-            return true;
+            return Some(max_in(P::hit_t(hit), act));
         }
         let mut t_hi = t_hi;
-        let mut changed = false;
+        let mut changed = None;
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
             while bits != 0 {
@@ -499,7 +502,7 @@ impl Bvh {
                 let code = prim_code(PrimKind::Triangle, b.first as usize + j);
                 P::record(&self.prims, hit, m, t, (u, v), code);
                 t_hi = max_in(P::hit_t(hit), act);
-                changed = true;
+                changed = Some(t_hi);
             }
         }
         changed
