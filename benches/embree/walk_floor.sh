@@ -18,23 +18,14 @@ SETUP_ONLY=1 "$here/run.sh" "$peer"  # Embree, numpy, the tori, the harness
 e=$peer/bench_e3_anyhit
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-"$peer/venv/bin/python" - "$work" "$here/gen_data.py" <<'PY'
+PYTHONPATH=$here "$peer/venv/bin/python" - "$work" <<'PY'
 import sys, numpy as np
-work, gen = sys.argv[1], sys.argv[2]
-src = open(gen).read()
-exec(src[:src.index('meshes = {')].replace('out = sys.argv[1] if len(sys.argv) > 1 else "data"', f'out = {work!r}'))
-v, t = torus(50, 40); save_mesh('torus4k', v, t)
-save_mesh('far1', np.array([[100, 100, 100], [101, 100, 100], [100, 101, 100]], np.float32),
-          np.array([[0, 1, 2]], np.uint32))
-W, H = 1920, 1080
-eye = np.array([0, -3.2, 2.2]); fwd = -eye / np.linalg.norm(eye)
-right = np.cross(fwd, [0, 0, 1]); right /= np.linalg.norm(right); up = np.cross(right, fwd)
-th = np.tan(np.radians(50) / 2)
-by, bx, py, px = np.meshgrid(np.arange(H // 4), np.arange(W // 4), np.arange(4), np.arange(4), indexing='ij')
-x = (bx * 4 + px).ravel(); y = (by * 4 + py).ravel()
-d = fwd + ((x + 0.5) / W * 2 - 1)[:, None] * th * W / H * right + (1 - (y + 0.5) / H * 2)[:, None] * th * up
-d /= np.linalg.norm(d, axis=1)[:, None]
-save_rays('primary', np.repeat(eye[None], len(x), 0).astype(np.float32), d.astype(np.float32))
+import gen_data as g
+g.out = sys.argv[1]
+v, t = g.torus(50, 40); g.save_mesh('torus4k', v, t)
+g.save_mesh('far1', np.array([[100, 100, 100], [101, 100, 100], [100, 101, 100]], np.float32),
+            np.array([[0, 1, 2]], np.uint32))
+g.save_rays('primary', *g.frame_rays())
 PY
 ln -s "$peer/data/incoherent.rays" "$work/incoherent.rays"
 for m in torus100k torus1m; do ln -s "$peer/data/$m.mesh" "$work/$m.mesh"; ln -s "$peer/data/$m.obj" "$work/$m.obj"; done

@@ -146,6 +146,14 @@ impl Bvh {
         self.intersect_x8_spread::<T>(r, active, self.frustum_spread(), hit, steps);
     }
 
+    /// Whether closest-hit packets are bounded by the floor before the walk
+    /// ([`PrimSet::bound_by_floor_x8`](crate::geometry::PrimSet::bound_by_floor_x8)): a
+    /// scene with a floor and a tree to skip.
+    #[inline]
+    pub(crate) fn bounds_by_floor(&self) -> bool {
+        self.prims.floor.is_some() && !self.nodes.is_empty()
+    }
+
     /// Whether lanes `how_far` apart (as [`Frustum::new`](super::wide::walk_x8) measures
     /// them; ∞ for mixed direction signs) take their own single-ray walks of the wide
     /// tree stepped in turn: past [`LANES_SPREAD`], in a tree of at least
@@ -181,7 +189,7 @@ impl Bvh {
         if active.none() {
             return;
         }
-        if !self.nodes.is_empty() {
+        if self.bounds_by_floor() {
             self.prims.bound_by_floor_x8(r, active, hit);
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {

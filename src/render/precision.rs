@@ -20,6 +20,7 @@
 
 use glam::Vec3;
 
+use crate::geometry::floor::Floor32;
 use crate::geometry::{PrimKind, PrimSet, prim_code};
 use crate::math::Aabb;
 use crate::scene::Scene;
@@ -90,7 +91,7 @@ impl Detail {
 /// its direction.)
 pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
     let mut scan = Scan {
-        floor: prims.floor.as_ref().map(|f| [f.x0, f.x1, f.y0, f.y1, f.z]),
+        floor: prims.floor.as_ref(),
         smallest: None,
     };
     for kind in PrimKind::BVH_KINDS {
@@ -123,19 +124,18 @@ fn measure(b: Aabb) -> (f32, Vec3, Vec3) {
     (reach, b.hi - b.lo, (b.lo + b.hi) * 0.5)
 }
 
-/// [`smallest_detail`]'s pass: the floor's rectangle (x0, x1, y0, y1, z) and the best
-/// so far.
-struct Scan {
-    floor: Option<[f32; 5]>,
+/// [`smallest_detail`]'s pass: the floor and the best so far.
+struct Scan<'a> {
+    floor: Option<&'a Floor32>,
     smallest: Option<((f32, f64), PrimKind, usize)>,
 }
 
-impl Scan {
+impl Scan<'_> {
     /// From `c` to the nearest point of the floor (zero without a floor).
     #[inline(always)]
     fn to_floor(&self, c: Vec3) -> Vec3 {
-        self.floor.map_or(Vec3::ZERO, |[x0, x1, y0, y1, z]| {
-            Vec3::new(c.x.clamp(x0, x1), c.y.clamp(y0, y1), z) - c
+        self.floor.map_or(Vec3::ZERO, |f| {
+            Vec3::new(c.x.clamp(f.x0, f.x1), c.y.clamp(f.y0, f.y1), f.z) - c
         })
     }
 
@@ -161,7 +161,6 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
-    use crate::geometry::floor::Floor32;
     use crate::geometry::triangle::Triangle32;
     use crate::math::test_rng::Xorshift;
 

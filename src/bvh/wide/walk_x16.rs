@@ -122,7 +122,8 @@ impl Bvh {
         steps: &mut Steps,
     ) {
         let (half, fin, frustum) = self.frustum_x16(r, active);
-        if !self.nodes.is_empty() && self.prims.floor.is_some() {
+        // (the halves' route, `intersect_x8`, bounds its own lanes)
+        if self.bounds_by_floor() && !matches!(frustum, Err(false)) {
             let mut h = hit.halves();
             for (k, hk) in h.iter_mut().enumerate() {
                 self.prims.bound_by_floor_x8(&r.halves[k], half[k], hk);
