@@ -244,10 +244,7 @@ fn the_image_is_the_same_under_every_instruction_set() {
     let mixed = generated_scene(400, 5);
     let torus = {
         let mut s = generated_scene(1, 1);
-        let mut mesh = octaray::scene::obj::Mesh {
-            vertices: Vec::new(),
-            triangles: Vec::new(),
-        };
+        let mut mesh = octaray::scene::obj::Mesh::new(Vec::new(), Vec::new());
         for t in torus(64, 32) {
             let k = mesh.vertices.len() as u32;
             mesh.vertices

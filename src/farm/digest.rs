@@ -233,6 +233,7 @@ fn hash_shape(h: &mut Fnv1a128, shape: &Shape) {
             let crate::scene::obj::Mesh {
                 vertices,
                 triangles,
+                ..
             } = &**mesh;
             h.u32(vertices.len() as u32);
             vertices.iter().for_each(|p| h.vec(*p));

@@ -346,8 +346,21 @@ impl PrimSet {
                 Shape::Mesh(m) => {
                     s.triangles.reserve(m.triangles.len());
                     s.triangle_obj.reserve(m.triangles.len());
-                    for k in 0..m.triangles.len() {
-                        s.push_triangle(&m.triangle(k), base, id);
+                    // each vertex moved into the frame once (`Triangle32::new`'s
+                    // rounding, vertex by vertex); the scene's own zero-area test only
+                    // in a mesh that has such triangles
+                    let v32: Vec<Vec3> =
+                        (m.vertices.iter()).map(|p| (*p - base).as_vec3()).collect();
+                    let any_zero_area = m.zero_area() > 0;
+                    for (k, t) in m.triangles.iter().enumerate() {
+                        let t32 = triangle::Triangle32 {
+                            v: t.map(|i| v32[i as usize]),
+                        };
+                        s.push_triangle32(
+                            t32,
+                            any_zero_area && is_degenerate_triangle(&m.triangle(k)),
+                            id,
+                        );
                     }
                     (bottoms[i], tops[i]) = (lowest(&m.vertices), highest(&m.vertices));
                 }
@@ -423,8 +436,14 @@ impl PrimSet {
 
     fn push_triangle(&mut self, v: &[DVec3; 3], base: DVec3, id: u32) {
         let t = triangle::Triangle32::new(v, base);
-        let v32 = t.v.map(|p| p.as_dvec3());
-        if is_degenerate_triangle(v) || is_degenerate_triangle(&v32) {
+        self.push_triangle32(t, is_degenerate_triangle(v), id);
+    }
+
+    /// Triangle `t` of object `id` in the frame, dropped when it has zero area there or
+    /// in the scene (`zero_area`).
+    #[inline(always)]
+    fn push_triangle32(&mut self, t: triangle::Triangle32, zero_area: bool, id: u32) {
+        if zero_area || is_degenerate_triangle(&t.v.map(|p| p.as_dvec3())) {
             self.dropped += 1;
             return;
         }
@@ -873,6 +892,64 @@ impl PrimSet {
             PrimKind::Quadric => self.quadrics[i].surface_1(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_1(r, t),
             PrimKind::Floor => self.floor.expect("floor hit").surface_1(r, t),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::DVec3;
+
+    use super::PrimSet;
+    use crate::scene::obj::Mesh;
+    use crate::scene::{Floor, Object, Scene, Shape};
+
+    /// A mesh's triangles enter the f32 frame as the same triangles given one by one
+    /// would: the same vertices bit for bit, the same dropped (zero area in the scene, or
+    /// only once rounded to f32 far from the frame's origin), with or without a
+    /// zero-area triangle in the mesh (its f64 test is skipped in a mesh without).
+    #[test]
+    fn mesh_triangles_enter_the_frame_as_single_triangles() {
+        let far = 3.0e7;
+        let vertices = vec![
+            DVec3::new(0.1, 0.2, 0.3),
+            DVec3::new(1.7, -0.4, 0.9),
+            DVec3::new(-0.6, 2.2, 1.1),
+            DVec3::new(-1.3, 4.2, 1.9), // on the line through 0 and 2 (zero area)
+            DVec3::new(far, far, 1.0),
+            DVec3::new(far + 0.3, far, 1.0),
+            DVec3::new(far + 0.6, far + 1e-9, 1.0), // a sliver that f32 makes straight
+        ];
+        let base = DVec3::new(0.5, -0.25, 2.0);
+        let scene = |shapes: Vec<Shape>| Scene {
+            recursion_level: 1,
+            pixels: 16,
+            objects: (shapes.into_iter())
+                .map(|shape| Object {
+                    shape,
+                    material: Floor::MATERIAL,
+                })
+                .collect(),
+            point_lights: vec![],
+            spot_lights: vec![],
+        };
+        for triangles in [
+            vec![[0, 1, 2], [2, 1, 0], [4, 5, 6], [1, 2, 0]],
+            vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [6, 1, 2]],
+        ] {
+            let mesh = Mesh::new(vertices.clone(), triangles.clone());
+            let single = (triangles.iter())
+                .map(|t| Shape::Triangle {
+                    v: t.map(|i| vertices[i as usize]),
+                })
+                .collect();
+            let a = PrimSet::from_scene(&scene(vec![Shape::Mesh(Arc::new(mesh))]), base);
+            let b = PrimSet::from_scene(&scene(single), base);
+            assert_eq!(a.triangles, b.triangles);
+            assert_eq!(a.dropped, b.dropped);
+            assert_eq!(a.dropped, 1 + triangles.contains(&[0, 2, 3]) as usize);
         }
     }
 }

@@ -289,10 +289,8 @@ pub fn decode(r: &mut impl Read, len: u64, source: &Source) -> Option<Mesh> {
         at += block.len();
     }
     let in_range = nt == 0 || (most as usize) < nv;
-    (digest.finish() == u64_at(DIGEST_AT) && finite && in_range).then_some(Mesh {
-        vertices,
-        triangles,
-    })
+    (digest.finish() == u64_at(DIGEST_AT) && finite && in_range)
+        .then_some(Mesh::new(vertices, triangles))
 }
 
 /// `N` bytes of `b` from `at`, zeros past its end (callers check lengths first).
@@ -479,8 +477,8 @@ mod tests {
             (40_000, 70_001),
             (3 * block_vertices + 7, 2 * BLOCK / TRIANGLE_BYTES + 5),
         ] {
-            let mesh = Mesh {
-                vertices: (0..nv)
+            let mesh = Mesh::new(
+                (0..nv)
                     .map(|_| {
                         // finite bit patterns of every kind (-0, subnormals, the largest)
                         let f = |b: u64| {
@@ -494,10 +492,10 @@ mod tests {
                         DVec3::new(f(next()), f(next()), f(next() & 0x800f_ffff_ffff_ffff))
                     })
                     .collect(),
-                triangles: (0..nt)
+                (0..nt)
                     .map(|_| [0, 1, 2].map(|_| (next() % nv.max(1) as u64) as u32))
                     .collect(),
-            };
+            );
             let bytes = encoded(&mesh, &source);
             assert_eq!(
                 bytes.len(),

@@ -18,16 +18,25 @@
 
 use std::fmt;
 use std::path::Path;
+use std::sync::OnceLock;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
 /// Triangles over a shared vertex array, f64 like the rest of the scene.
-#[derive(Clone, PartialEq)]
+#[derive(Clone)]
 pub struct Mesh {
     pub vertices: Vec<DVec3>,
     /// Vertex indices (0-based) of each triangle, in file order.
     pub triangles: Vec<[u32; 3]>,
+    /// [`Mesh::zero_area`], counted on its first call.
+    zero_area: OnceLock<usize>,
+}
+
+impl PartialEq for Mesh {
+    fn eq(&self, other: &Mesh) -> bool {
+        self.vertices == other.vertices && self.triangles == other.triangles
+    }
 }
 
 impl fmt::Debug for Mesh {
@@ -42,6 +51,26 @@ impl fmt::Debug for Mesh {
 }
 
 impl Mesh {
+    pub fn new(vertices: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Mesh {
+        Mesh {
+            vertices,
+            triangles,
+            zero_area: OnceLock::new(),
+        }
+    }
+
+    /// How many of its triangles have zero area (`is_degenerate_triangle`). Counted on
+    /// the first call and kept (the scene's parse warns with it, and the packet path
+    /// skips the f64 test of every triangle when it is 0): the vertices and triangles
+    /// are not to change after that call.
+    pub fn zero_area(&self) -> usize {
+        *self.zero_area.get_or_init(|| {
+            (0..self.triangles.len())
+                .filter(|&k| crate::scene::parse::is_degenerate_triangle(&self.triangle(k)))
+                .count()
+        })
+    }
+
     /// The vertices of triangle `k`.
     pub fn triangle(&self, k: usize) -> [DVec3; 3] {
         self.triangles[k].map(|i| self.vertices[i as usize])
@@ -100,10 +129,7 @@ pub fn parse_obj_bytes(text: &[u8], file: &str) -> Result<Mesh, ObjError> {
         return Ok(mesh);
     }
     let part = Part::parse(text, file, true)?;
-    Ok(Mesh {
-        vertices: part.vertices,
-        triangles: part.triangles,
-    })
+    Ok(Mesh::new(part.vertices, part.triangles))
 }
 
 /// The pieces of `text` parsed in parallel and joined; `None` on any error (the
@@ -135,10 +161,7 @@ fn parse_pieces(text: &[u8]) -> Option<Mesh> {
         }
         vertices.extend_from_slice(&p.vertices);
     }
-    Some(Mesh {
-        vertices,
-        triangles,
-    })
+    Some(Mesh::new(vertices, triangles))
 }
 
 /// Where the line that holds byte `at` or the next one starts: `at` itself when a
@@ -729,10 +752,7 @@ mod tests {
                 _ => {}
             }
         }
-        Ok(Mesh {
-            vertices,
-            triangles,
-        })
+        Ok(Mesh::new(vertices, triangles))
     }
 
     /// Random OBJ text: mostly valid `v` and `f` lines (any index form, back
@@ -855,10 +875,8 @@ mod tests {
                 }
             }
             assert!(text.len() >= PARALLEL_BYTES, "{}", text.len());
-            let serial = Part::parse(&text, "p.obj", true).map(|p| Mesh {
-                vertices: p.vertices,
-                triangles: p.triangles,
-            });
+            let serial =
+                Part::parse(&text, "p.obj", true).map(|p| Mesh::new(p.vertices, p.triangles));
             if case < 3 {
                 assert!(parse_pieces(&text).is_some(), "case {case}: pieces failed");
             }

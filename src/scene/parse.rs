@@ -751,9 +751,7 @@ impl<R: Read> Reader<'_, R> {
                     let message = format!("{}{at}: {}", escaped(&e.file), e.message);
                     self.error_at(Some(&t), &field, message)
                 })?;
-                let degenerate = (0..mesh.triangles.len())
-                    .filter(|&k| is_degenerate_triangle(&mesh.triangle(k)))
-                    .count();
+                let degenerate = mesh.zero_area();
                 if mesh.triangles.is_empty() {
                     // (lower-case `v` and `f` lines only; anything else is ignored)
                     self.warn_at(
