@@ -72,8 +72,13 @@ impl Mesh {
     }
 
     /// The vertices of triangle `k`.
+    #[inline(always)]
     pub fn triangle(&self, k: usize) -> [DVec3; 3] {
-        self.triangles[k].map(|i| self.vertices[i as usize])
+        // each vertex loaded by name (an array `map` went through the stack, whose
+        // 8- and 16-byte stores its readers' wider loads then waited for)
+        let [a, b, c] = self.triangles[k];
+        let v = &self.vertices;
+        [v[a as usize], v[b as usize], v[c as usize]]
     }
 }
 

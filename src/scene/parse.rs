@@ -803,6 +803,10 @@ fn looks_integral(s: &str) -> bool {
 /// that underflows is far below it, degenerate either way). Outside it (a zero, NaN or
 /// infinite edge, an edge longer than 2²²⁵ or shorter than 2⁻²²⁵) in lengths, as
 /// `is_degenerate_triangle_by_lengths`. The reference's triangle test uses it too.
+/// Inlined, and its rare case given the edges by value: a call of either with the
+/// vertices' address put them on the stack, where loads that straddled the caller's
+/// stores stalled (about 10 ns a triangle).
+#[inline(always)]
 pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
     const SAFE: std::ops::RangeInclusive<f64> =
         f64::from_bits((1023 - 450) << 52)..=f64::from_bits((1023 + 450) << 52);
@@ -813,13 +817,20 @@ pub fn is_degenerate_triangle(v: &[DVec3; 3]) -> bool {
         // |e1 × e2| <= |e1|·|e2| <= 2⁴⁵⁰: finite, no component overflows
         return e1.cross(e2).length_squared() <= 1e-24 * a2 * b2;
     }
-    is_degenerate_triangle_by_lengths(v)
+    degenerate_by_lengths(e1.to_array(), e2.to_array())
 }
 
 /// [`is_degenerate_triangle`] in lengths, at every scale.
+#[cfg(test)]
 fn is_degenerate_triangle_by_lengths(v: &[DVec3; 3]) -> bool {
-    let e1 = v[1] - v[0];
-    let e2 = v[2] - v[0];
+    degenerate_by_lengths((v[1] - v[0]).to_array(), (v[2] - v[0]).to_array())
+}
+
+/// [`is_degenerate_triangle`] in lengths, of the edges from the first vertex.
+#[inline(never)]
+#[cold]
+fn degenerate_by_lengths(e1: [f64; 3], e2: [f64; 3]) -> bool {
+    let (e1, e2) = (DVec3::from_array(e1), DVec3::from_array(e2));
     let n = e1.cross(e2).length();
     let limit = 1e-12 * e1.length() * e2.length();
     // NaN (coordinates so large that the cross product overflows) is degenerate too.
