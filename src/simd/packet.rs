@@ -107,12 +107,12 @@ pub(crate) use x16::{HitPacket16, RayPacket16};
 
 #[cfg(target_arch = "x86_64")]
 mod x16 {
-    use wide::{f32x8, i32x8};
+    use wide::f32x8;
 
     use super::{HitLanes, RayLanes};
     use crate::math::packet::{HitPacket8, Mask8, RayPacket8, Vec3x8};
+    use crate::simd::LaneMask;
     use crate::simd::w16::{F16, I16, M16};
-    use crate::simd::{IntLanes, LaneMask, Lanes};
 
     /// Sixteen rays: two [`RayPacket8`]s (lanes 0–7 and 8–15) and their lanes as one.
     /// Made only inside the `avx512` kernels (see [`F16`]).
@@ -124,10 +124,7 @@ mod x16 {
 
     #[inline(always)]
     fn cat(a: f32x8, b: f32x8) -> F16 {
-        let mut x = [0f32; 16];
-        x[..8].copy_from_slice(a.as_array());
-        x[8..].copy_from_slice(b.as_array());
-        F16::from_array(x)
+        F16::from_halves(a, b)
     }
 
     #[inline(always)]
@@ -174,12 +171,9 @@ mod x16 {
         #[inline(always)]
         pub fn from_halves(h: [HitPacket8; 2]) -> HitPacket16 {
             let [a, b] = h;
-            let mut prim = [0i32; 16];
-            prim[..8].copy_from_slice(a.prim.as_array());
-            prim[8..].copy_from_slice(b.prim.as_array());
             HitPacket16 {
                 t: cat(a.t, b.t),
-                prim: I16::from_array(prim),
+                prim: I16::from_halves(a.prim, b.prim),
                 u: cat(a.u, b.u),
                 v: cat(a.v, b.v),
             }
@@ -188,8 +182,8 @@ mod x16 {
         #[inline(always)]
         pub fn halves(&self) -> [HitPacket8; 2] {
             let ([t0, t1], [u0, u1], [v0, v1]) = (split(self.t), split(self.u), split(self.v));
-            let p = self.prim.to_array();
-            let prim = |h: usize| i32x8::new(p[8 * h..8 * h + 8].try_into().expect("8 lanes"));
+            let prim = self.prim.halves();
+            let prim = |h: usize| prim[h];
             [
                 HitPacket8 {
                     t: t0,
@@ -210,12 +204,7 @@ mod x16 {
     /// Lanes 0–7 and 8–15 of `v`.
     #[inline(always)]
     pub fn split(v: F16) -> [f32x8; 2] {
-        let a = v.to_array();
-        let (lo, hi) = a.split_at(8);
-        [
-            f32x8::new(lo.try_into().expect("8 lanes")),
-            f32x8::new(hi.try_into().expect("8 lanes")),
-        ]
+        v.halves()
     }
 }
 

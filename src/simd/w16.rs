@@ -14,7 +14,10 @@ pub use imp::{F16, I16, M16};
 #[cfg(target_arch = "x86_64")]
 mod imp {
     use std::arch::x86_64::*;
+    use std::mem::transmute;
     use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+    use wide::{f32x8, i32x8};
 
     use crate::simd::{IntLanes, LaneMask, Lanes};
 
@@ -39,7 +42,73 @@ mod imp {
     // use of them is inlined into a function compiled with AVX-512 that is called
     // only with an `Avx512` token, which only a CPU that has the features yields
     // (`isa.rs`). The loads and stores read or write exactly the 64 bytes of an
-    // `[f32; 16]` or `[i32; 16]` owned by the caller, unaligned.
+    // `[f32; 16]` or `[i32; 16]` owned by the caller, unaligned. The transmutes
+    // reinterpret 32 bytes of eight f32 or i32 lanes (`wide`'s `f32x8`, `i32x8`) as
+    // `__m256`/`__m256i` and back: the same size, and every bit pattern a valid value.
+
+    /// 256-bit halves of the 16-lane types, joined and split in registers (through an
+    /// array, the 512-bit load of two 256-bit stores waited for both to retire).
+    impl F16 {
+        /// Lanes 0–7 from `lo`, 8–15 from `hi`.
+        #[inline(always)]
+        pub fn from_halves(lo: f32x8, hi: f32x8) -> F16 {
+            let (lo, hi) = unsafe {
+                (
+                    transmute::<f32x8, __m256>(lo),
+                    transmute::<f32x8, __m256>(hi),
+                )
+            };
+            unsafe { F16(_mm512_insertf32x8::<1>(_mm512_castps256_ps512(lo), hi)) }
+        }
+
+        /// Lanes 0–7 and 8–15.
+        #[inline(always)]
+        pub fn halves(self) -> [f32x8; 2] {
+            let (lo, hi) = unsafe {
+                (
+                    _mm512_castps512_ps256(self.0),
+                    _mm512_extractf32x8_ps::<1>(self.0),
+                )
+            };
+            unsafe {
+                [
+                    transmute::<__m256, f32x8>(lo),
+                    transmute::<__m256, f32x8>(hi),
+                ]
+            }
+        }
+    }
+
+    impl I16 {
+        /// Lanes 0–7 from `lo`, 8–15 from `hi` (as [`F16::from_halves`]).
+        #[inline(always)]
+        pub fn from_halves(lo: i32x8, hi: i32x8) -> I16 {
+            let (lo, hi) = unsafe {
+                (
+                    transmute::<i32x8, __m256i>(lo),
+                    transmute::<i32x8, __m256i>(hi),
+                )
+            };
+            unsafe { I16(_mm512_inserti32x8::<1>(_mm512_castsi256_si512(lo), hi)) }
+        }
+
+        /// Lanes 0–7 and 8–15.
+        #[inline(always)]
+        pub fn halves(self) -> [i32x8; 2] {
+            let (lo, hi) = unsafe {
+                (
+                    _mm512_castsi512_si256(self.0),
+                    _mm512_extracti32x8_epi32::<1>(self.0),
+                )
+            };
+            unsafe {
+                [
+                    transmute::<__m256i, i32x8>(lo),
+                    transmute::<__m256i, i32x8>(hi),
+                ]
+            }
+        }
+    }
 
     impl LaneMask for M16 {
         const ALL: M16 = M16(u16::MAX);
