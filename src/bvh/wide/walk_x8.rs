@@ -478,9 +478,14 @@ impl Bvh {
             r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
             return Some(max_in(P::hit_t(hit), act));
         }
-        let mut t_hi = t_hi;
-        let mut changed = None;
+        // the lanes' largest nearest hit is reduced again only before a block and at the
+        // end, not after every hit recorded (a 16-lane reduction is a chain of eight
+        // steps; a stale, larger bound only culls less)
+        let (mut t_hi, mut dirty, mut changed) = (t_hi, false, false);
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
+            if dirty {
+                (t_hi, dirty, changed) = (max_in(P::hit_t(hit), act), false, true);
+            }
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
@@ -501,11 +506,13 @@ impl Bvh {
                 }
                 let code = prim_code(PrimKind::Triangle, b.first as usize + j);
                 P::record(&self.prims, hit, m, t, (u, v), code);
-                t_hi = max_in(P::hit_t(hit), act);
-                changed = Some(t_hi);
+                dirty = true;
             }
         }
-        changed
+        if dirty {
+            (t_hi, changed) = (max_in(P::hit_t(hit), act), true);
+        }
+        changed.then_some(t_hi)
     }
 
     /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
