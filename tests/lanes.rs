@@ -244,13 +244,13 @@ fn the_image_is_the_same_under_every_instruction_set() {
     let mixed = generated_scene(400, 5);
     let torus = {
         let mut s = generated_scene(1, 1);
-        let mut mesh = octaray::scene::obj::Mesh::new(Vec::new(), Vec::new());
+        let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
         for t in torus(64, 32) {
-            let k = mesh.vertices.len() as u32;
-            mesh.vertices
-                .extend(t.v.map(|p| p.as_dvec3() * 10.0 + DVec3::new(0.0, 0.0, 15.0)));
-            mesh.triangles.push([k, k + 1, k + 2]);
+            let k = vertices.len() as u32;
+            vertices.extend(t.v.map(|p| p.as_dvec3() * 10.0 + DVec3::new(0.0, 0.0, 15.0)));
+            triangles.push([k, k + 1, k + 2]);
         }
+        let mesh = octaray::scene::obj::Mesh::new(vertices, triangles);
         s.objects[0].shape = octaray::scene::Shape::Mesh(std::sync::Arc::new(mesh));
         s
     };

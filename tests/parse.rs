@@ -600,11 +600,11 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
     let bom = dir.join("bom.obj");
     std::fs::write(&bom, [&b"\xef\xbb\xbf"[..], body].concat()).unwrap();
     let m = load_obj(&bom).unwrap();
-    assert_eq!((m.vertices.len(), m.triangles.len()), (3, 1));
-    assert_eq!(m.vertices[0], glam::DVec3::ZERO);
+    assert_eq!((m.vertices().len(), m.triangles().len()), (3, 1));
+    assert_eq!(m.vertices()[0], glam::DVec3::ZERO);
     let stray = dir.join("stray.obj");
     std::fs::write(&stray, [&b"# caf\xe9 \xb0C\n"[..], body].concat()).unwrap();
-    assert_eq!(load_obj(&stray).unwrap().triangles.len(), 1);
+    assert_eq!(load_obj(&stray).unwrap().triangles().len(), 1);
     std::fs::write(dir.join("empty.obj"), b"v 0 0 0\n").unwrap();
     let scene = dir.join("s.txt");
     std::fs::write(

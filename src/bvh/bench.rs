@@ -786,7 +786,7 @@ pub fn run(
                 format!("read and parse the OBJ file; mesh cache not written: {why}")
             }
         };
-        let (vertices, faces) = (obj.vertices.len(), obj.triangles.len());
+        let (vertices, faces) = (obj.vertices().len(), obj.triangles().len());
         let (tris, dropped) = mesh_triangles(obj);
         // the process's peak memory so far, for the log
         let peak = || peak_rss_mb().map_or_else(String::new, |mb| format!(", peak_rss_MB={mb:.1}"));

@@ -230,11 +230,7 @@ fn hash_shape(h: &mut Fnv1a128, shape: &Shape) {
         }
         Shape::Mesh(mesh) => {
             h.write(b"mesh");
-            let crate::scene::obj::Mesh {
-                vertices,
-                triangles,
-                ..
-            } = &**mesh;
+            let (vertices, triangles) = (mesh.vertices(), mesh.triangles());
             h.u32(vertices.len() as u32);
             vertices.iter().for_each(|p| h.vec(*p));
             h.u32(triangles.len() as u32);

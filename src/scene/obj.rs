@@ -25,10 +25,14 @@ use rayon::prelude::*;
 
 /// Triangles over a shared vertex array, f64 like the rest of the scene.
 #[derive(Clone)]
+///
+/// Its arrays are read through [`Mesh::vertices`] and [`Mesh::triangles`] and never
+/// changed in place (to edit one, take it apart with [`Mesh::into_parts`] and build
+/// anew), so what [`Mesh::zero_area`] counted once stays true.
 pub struct Mesh {
-    pub vertices: Vec<DVec3>,
+    vertices: Vec<DVec3>,
     /// Vertex indices (0-based) of each triangle, in file order.
-    pub triangles: Vec<[u32; 3]>,
+    triangles: Vec<[u32; 3]>,
     /// [`Mesh::zero_area`], counted on its first call.
     zero_area: OnceLock<usize>,
 }
@@ -59,10 +63,23 @@ impl Mesh {
         }
     }
 
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.vertices
+    }
+
+    /// Vertex indices (0-based) of each triangle, in file order.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The vertices and the triangles, for a mesh built anew from them.
+    pub fn into_parts(self) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        (self.vertices, self.triangles)
+    }
+
     /// How many of its triangles have zero area (`is_degenerate_triangle`). Counted on
     /// the first call and kept (the scene's parse warns with it, and the packet path
-    /// skips the f64 test of every triangle when it is 0): the vertices and triangles
-    /// are not to change after that call.
+    /// skips the f64 test of every triangle when it is 0).
     pub fn zero_area(&self) -> usize {
         *self.zero_area.get_or_init(|| {
             (0..self.triangles.len())
@@ -589,8 +606,8 @@ mod tests {
     fn quads_are_fanned_and_negative_indices_count_back() {
         let text = "# a quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1/1/1 2//1 3 4\nf -4 -3 -2\n";
         let m = parse_obj(text, "q.obj").unwrap();
-        assert_eq!(m.vertices.len(), 4);
-        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
+        assert_eq!(m.vertices().len(), 4);
+        assert_eq!(m.triangles(), vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
         assert_eq!(m.triangle(1)[2], DVec3::new(0.0, 1.0, 0.0));
     }
 
@@ -613,7 +630,10 @@ mod tests {
     #[test]
     fn lone_cr_ends_a_line_as_in_scene_files() {
         let m = parse_obj("v 0 0 0\rv 1 0 0\r\nv 0 1 0\rf 1 2 3\r", "mac.obj").unwrap();
-        assert_eq!((m.vertices.len(), m.triangles), (3, vec![[0, 1, 2]]));
+        assert_eq!(
+            (m.vertices().len(), m.triangles().to_vec()),
+            (3, vec![[0, 1, 2]])
+        );
         let e = parse_obj("v 0 0 0\rv 1 0 0\r\rf 1 2 4\r", "mac.obj").unwrap_err();
         assert_eq!(
             e.to_string(),
@@ -844,7 +864,7 @@ mod tests {
             let want = reference(&text, "r.obj");
             match (&got, &want) {
                 (Ok(a), Ok(b)) => {
-                    assert_eq!(a.triangles, b.triangles, "case {case}");
+                    assert_eq!(a.triangles(), b.triangles(), "case {case}");
                     let bits = |m: &Mesh| -> Vec<[u64; 3]> {
                         m.vertices
                             .iter()

@@ -583,7 +583,7 @@ impl<R: Read> Reader<'_, R> {
             triangles += match &shape {
                 Shape::Triangle { .. } => 1,
                 Shape::Prism { .. } => 8,
-                Shape::Mesh(m) => m.triangles.len() as u64,
+                Shape::Mesh(m) => m.triangles().len() as u64,
                 _ => 0,
             };
             if triangles > self.max_triangles {
@@ -752,7 +752,7 @@ impl<R: Read> Reader<'_, R> {
                     self.error_at(Some(&t), &field, message)
                 })?;
                 let degenerate = mesh.zero_area();
-                if mesh.triangles.is_empty() {
+                if mesh.triangles().is_empty() {
                     // (lower-case `v` and `f` lines only; anything else is ignored)
                     self.warn_at(
                         at,

@@ -46,6 +46,10 @@ mod imp {
     // reinterpret 32 bytes of eight f32 or i32 lanes (`wide`'s `f32x8`, `i32x8`) as
     // `__m256`/`__m256i` and back: the same size, and every bit pattern a valid value.
 
+    // `wide`'s eight-lane types are 32 bytes of lanes in order (one `__m256`, or two
+    // `__m128` halves on a target without AVX): what the transmutes below rely on
+    const _: () = assert!(std::mem::size_of::<f32x8>() == 32 && std::mem::size_of::<i32x8>() == 32);
+
     /// 256-bit halves of the 16-lane types, joined and split in registers (through an
     /// array, the 512-bit load of two 256-bit stores waited for both to retire).
     impl F16 {

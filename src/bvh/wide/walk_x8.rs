@@ -478,9 +478,9 @@ impl Bvh {
             r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
             return Some(max_in(P::hit_t(hit), act));
         }
-        // the lanes' largest nearest hit is reduced again only before a block and at the
-        // end, not after every hit recorded (a 16-lane reduction is a chain of eight
-        // steps; a stale, larger bound only culls less)
+        // the lanes' largest nearest hit is read only by the next block's candidates and
+        // by the caller: reduced there, not after every hit recorded (a 16-lane reduction
+        // is a chain of eight steps)
         let (mut t_hi, mut dirty, mut changed) = (t_hi, false, false);
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
             if dirty {
