@@ -24,11 +24,11 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 /// Triangles over a shared vertex array, f64 like the rest of the scene.
-#[derive(Clone)]
 ///
 /// Its arrays are read through [`Mesh::vertices`] and [`Mesh::triangles`] and never
 /// changed in place (to edit one, take it apart with [`Mesh::into_parts`] and build
 /// anew), so what [`Mesh::zero_area`] counted once stays true.
+#[derive(Clone)]
 pub struct Mesh {
     vertices: Vec<DVec3>,
     /// Vertex indices (0-based) of each triangle, in file order.

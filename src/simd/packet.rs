@@ -107,8 +107,6 @@ pub(crate) use x16::{HitPacket16, RayPacket16};
 
 #[cfg(target_arch = "x86_64")]
 mod x16 {
-    use wide::f32x8;
-
     use super::{HitLanes, RayLanes};
     use crate::math::packet::{HitPacket8, Mask8, RayPacket8, Vec3x8};
     use crate::simd::LaneMask;
@@ -123,12 +121,8 @@ mod x16 {
     }
 
     #[inline(always)]
-    fn cat(a: f32x8, b: f32x8) -> F16 {
-        F16::from_halves(a, b)
-    }
-
-    #[inline(always)]
     fn cat3(a: Vec3x8, b: Vec3x8) -> [F16; 3] {
+        let cat = F16::from_halves;
         [cat(a.x, b.x), cat(a.y, b.y), cat(a.z, b.z)]
     }
 
@@ -172,41 +166,35 @@ mod x16 {
         pub fn from_halves(h: [HitPacket8; 2]) -> HitPacket16 {
             let [a, b] = h;
             HitPacket16 {
-                t: cat(a.t, b.t),
+                t: F16::from_halves(a.t, b.t),
                 prim: I16::from_halves(a.prim, b.prim),
-                u: cat(a.u, b.u),
-                v: cat(a.v, b.v),
+                u: F16::from_halves(a.u, b.u),
+                v: F16::from_halves(a.v, b.v),
             }
         }
 
         #[inline(always)]
         pub fn halves(&self) -> [HitPacket8; 2] {
-            let ([t0, t1], [u0, u1], [v0, v1]) = (split(self.t), split(self.u), split(self.v));
-            let prim = self.prim.halves();
-            let prim = |h: usize| prim[h];
+            let ([t0, t1], [u0, u1], [v0, v1]) =
+                (self.t.halves(), self.u.halves(), self.v.halves());
+            let [p0, p1] = self.prim.halves();
             [
                 HitPacket8 {
                     t: t0,
-                    prim: prim(0),
+                    prim: p0,
                     u: u0,
                     v: v0,
                 },
                 HitPacket8 {
                     t: t1,
-                    prim: prim(1),
+                    prim: p1,
                     u: u1,
                     v: v1,
                 },
             ]
         }
     }
-
-    /// Lanes 0–7 and 8–15 of `v`.
-    #[inline(always)]
-    pub fn split(v: F16) -> [f32x8; 2] {
-        v.halves()
-    }
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use x16::{cat_mask, half_mask, split};
+pub(crate) use x16::{cat_mask, half_mask};

@@ -19,7 +19,7 @@ use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, PrimSet};
 use crate::math::packet::Mask8;
 use crate::simd::LaneMask;
-use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask, split};
+use crate::simd::packet::{HitPacket16, RayPacket16, cat_mask, half_mask};
 use crate::simd::w16::{F16, M16};
 use wide::f32x8;
 
@@ -77,7 +77,7 @@ impl WidePacket for RayPacket16 {
         left: M16,
         t_max: F16,
     ) -> M16 {
-        let t = split(t_max);
+        let t = t_max.halves();
         let blocked = |k: usize| {
             let a = half_mask(left, k);
             if a.none() {
@@ -225,7 +225,7 @@ impl Bvh {
         t_max: F16,
         steps: &mut Steps,
     ) -> M16 {
-        let t = split(t_max);
+        let t = t_max.halves();
         let (half, fin, frustum) = self.frustum_x16(r, active);
         if frustum.as_ref().is_err_and(|&scattered| scattered) {
             return self.occluded_x16_lanes::<T>(r, half, t, steps);

@@ -438,10 +438,8 @@ impl Bvh {
                     cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
                     continue 'walk;
                 }
-            } else if let Some(t) =
-                self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps)
-            {
-                t_hi = t;
+            } else {
+                t_hi = self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps);
             }
             // pop the next subtree some lane may still enter before its nearest hit
             loop {
@@ -456,8 +454,8 @@ impl Bvh {
         }
     }
 
-    /// A leaf of the wide packet walk; when some lane's hit changed, the lanes' largest
-    /// nearest hit.
+    /// A leaf of the wide packet walk; the lanes' largest nearest hit after it (`t_hi`,
+    /// the one before it, when no lane's hit changed).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn leaf_intersect<P: WidePacket, T: TriangleKernel, const OCT: u32>(
@@ -469,22 +467,22 @@ impl Bvh {
         t_hi: f32,
         hit: &mut P::Hit,
         steps: &mut Steps,
-    ) -> Option<f32> {
+    ) -> f32 {
         use simd::LaneMask as _;
         let (kind, count) = (leaf.slot.kind(), leaf.slot.count() as usize);
         let first = leaf.child as usize;
         if kind != PrimKind::Triangle {
             steps.leaf(kind, count, act.count());
             r.other_leaf::<T>(&self.prims, kind, first, count, act, hit);
-            return Some(max_in(P::hit_t(hit), act));
+            return max_in(P::hit_t(hit), act);
         }
         // the lanes' largest nearest hit is read only by the next block's candidates and
         // by the caller: reduced there, not after every hit recorded (a 16-lane reduction
         // is a chain of eight steps)
-        let (mut t_hi, mut dirty, mut changed) = (t_hi, false, false);
+        let (mut t_hi, mut dirty) = (t_hi, false);
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
             if dirty {
-                (t_hi, dirty, changed) = (max_in(P::hit_t(hit), act), false, true);
+                (t_hi, dirty) = (max_in(P::hit_t(hit), act), false);
             }
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
             while bits != 0 {
@@ -510,9 +508,9 @@ impl Bvh {
             }
         }
         if dirty {
-            (t_hi, changed) = (max_in(P::hit_t(hit), act), true);
+            t_hi = max_in(P::hit_t(hit), act);
         }
-        changed.then_some(t_hi)
+        t_hi
     }
 
     /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
