@@ -58,6 +58,24 @@ impl TriangleKernel for Moller {
         any_width(v, r.origin, r.dir, active, t_max)
     }
 
+    /// Nothing to move: the test subtracts the origin from one vertex only.
+    type Moved = ();
+
+    #[inline(always)]
+    fn move_block(_: &Triangle8, _: [f32x8; 3]) {}
+
+    #[inline(always)]
+    fn intersect_moved_lanes<L: simd::Lanes>(
+        b: &Triangle8,
+        _: &(),
+        j: usize,
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L) {
+        Self::intersect_splat_lanes(b.splat_lanes(j), r, active, t_max)
+    }
+
     #[inline(always)]
     fn intersect_1x8<const KZ: usize>(
         b: &Triangle8,

@@ -305,6 +305,27 @@ pub fn intersect_splat_x8(
     sheared_x8(p, r.shear.z, active, t_max)
 }
 
+/// The watertight test from the vertices translated to the ray origin on (`moved`,
+/// not yet permuted), at any width.
+#[inline(always)]
+fn from_moved<L: simd::Lanes>(
+    moved: [[L; 3]; 3],
+    r: &RayLanes<L>,
+    active: L::Mask,
+    t_max: L,
+) -> (L::Mask, L, L, L) {
+    let mut p = [
+        r.permute(moved[0]),
+        r.permute(moved[1]),
+        r.permute(moved[2]),
+    ];
+    for q in &mut p {
+        q[0] = q[0] + r.shear[0] * q[2];
+        q[1] = q[1] + r.shear[1] * q[2];
+    }
+    sheared(p, r.shear[2], active, t_max)
+}
+
 /// The watertight test from the sheared vertices on, at any width (one ray against
 /// eight triangles, or eight or sixteen rays against one): edge functions, the sign
 /// rule, the distance compared without dividing and its rounding bound. `p`: the
@@ -419,6 +440,19 @@ pub struct Triangle8 {
 }
 
 impl Triangle8 {
+    /// The corners of triangle `j`, each splatted (one broadcast from memory each).
+    #[inline(always)]
+    pub fn splat_lanes<L: simd::Lanes>(&self, j: usize) -> [[L; 3]; 3] {
+        // by reference, no closure over lanes (see `simd::packet`)
+        let v = &self.v;
+        let c = |i: usize, a: usize| v[i][a].as_array()[j];
+        [
+            [L::splat(c(0, 0)), L::splat(c(0, 1)), L::splat(c(0, 2))],
+            [L::splat(c(1, 0)), L::splat(c(1, 1)), L::splat(c(1, 2))],
+            [L::splat(c(2, 0)), L::splat(c(2, 1)), L::splat(c(2, 2))],
+        ]
+    }
+
     /// Packs up to 8 triangles; lane i holds `tris[i]`, padding lanes repeat the first
     /// vertex three times. Written lane by lane: the BVH collapse packs every triangle
     /// through here.
@@ -533,6 +567,26 @@ pub trait TriangleKernel: Copy + Send + Sync + 'static {
         t_max: L,
     ) -> (L::Mask, L, L, L);
 
+    /// A block's eight triangles made ready for packets whose lanes all share one
+    /// origin: what the kernel computes from the triangle and the origin alone, once for
+    /// the block instead of once per lane and triangle.
+    type Moved: Copy;
+
+    /// [`TriangleKernel::Moved`] of block `b` for the origin `o` (splatted).
+    fn move_block(b: &Triangle8, o: [f32x8; 3]) -> Self::Moved;
+
+    /// Triangle `j` of block `b`, moved to `m`, against a packet whose every lane has
+    /// the origin the block was moved to; lane for lane what
+    /// [`TriangleKernel::intersect_splat_lanes`] returns for that triangle.
+    fn intersect_moved_lanes<L: simd::Lanes>(
+        b: &Triangle8,
+        m: &Self::Moved,
+        j: usize,
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L);
+
     /// One ray (whose largest direction component is axis `KZ`) against the eight
     /// triangles of a block: lane i is triangle i.
     fn intersect_1x8<const KZ: usize>(
@@ -608,16 +662,40 @@ impl TriangleKernel for Watertight {
         t_max: L,
     ) -> (L::Mask, L, L, L) {
         // the steps of `intersect_splat_x8` (no closures: see `sheared`)
-        let mut p = [
-            r.permute(sub3(v[0], r.origin)),
-            r.permute(sub3(v[1], r.origin)),
-            r.permute(sub3(v[2], r.origin)),
+        let moved = [
+            sub3(v[0], r.origin),
+            sub3(v[1], r.origin),
+            sub3(v[2], r.origin),
         ];
-        for q in &mut p {
-            q[0] = q[0] + r.shear[0] * q[2];
-            q[1] = q[1] + r.shear[1] * q[2];
+        from_moved(moved, r, active, t_max)
+    }
+
+    /// The vertices translated to the origin: eight triangles' subtractions in one,
+    /// each lane's bits those of `intersect_splat_lanes`'s own.
+    type Moved = Triangle8;
+
+    #[inline(always)]
+    fn move_block(b: &Triangle8, o: [f32x8; 3]) -> Triangle8 {
+        let v = &b.v;
+        Triangle8 {
+            v: [
+                [v[0][0] - o[0], v[0][1] - o[1], v[0][2] - o[2]],
+                [v[1][0] - o[0], v[1][1] - o[1], v[1][2] - o[2]],
+                [v[2][0] - o[0], v[2][1] - o[1], v[2][2] - o[2]],
+            ],
         }
-        sheared(p, r.shear[2], active, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_moved_lanes<L: simd::Lanes>(
+        _: &Triangle8,
+        m: &Triangle8,
+        j: usize,
+        r: &RayLanes<L>,
+        active: L::Mask,
+        t_max: L,
+    ) -> (L::Mask, L, L, L) {
+        from_moved(m.splat_lanes(j), r, active, t_max)
     }
 
     #[inline(always)]

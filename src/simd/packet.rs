@@ -51,6 +51,23 @@ impl<L: Lanes> RayLanes<L> {
     }
 }
 
+impl RayLanes<wide::f32x8> {
+    /// The lanes of an 8-ray packet, field for field.
+    #[inline(always)]
+    pub fn of(r: &crate::math::packet::RayPacket8) -> Self {
+        let a = |v: crate::math::packet::Vec3x8| [v.x, v.y, v.z];
+        RayLanes {
+            origin: a(r.origin),
+            dir: a(r.dir),
+            inv_dir: a(r.inv_dir),
+            kz_x: r.kz_x,
+            kz_y: r.kz_y,
+            shear: a(r.shear),
+            kz_all: r.kz_all,
+        }
+    }
+}
+
 /// What packet kernels write, in lanes of `L` (fields as
 /// [`crate::math::packet::HitPacket8`]'s): distance, the hit primitive (−1: none) and
 /// two barycentric coordinates.

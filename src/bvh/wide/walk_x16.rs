@@ -12,8 +12,8 @@
 //! turn. A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
 //! same generic code (`tests/lanes.rs`).
 
+use super::TriBlock;
 use super::walk_x8::{Frustum, WidePacket, finite_lanes, shared_octant};
-use super::{TriBlock, walk_x8};
 use crate::bvh::{Bvh, Steps};
 use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, PrimSet};
@@ -42,7 +42,18 @@ impl WidePacket for RayPacket16 {
         act: M16,
         t_max: F16,
     ) -> (M16, F16, F16, F16) {
-        T::intersect_splat_lanes(walk_x8::block_vertices(b, j), &self.lanes, act, t_max)
+        T::intersect_splat_lanes(b.tri.splat_lanes(j), &self.lanes, act, t_max)
+    }
+    #[inline(always)]
+    fn moved_triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        m: &T::Moved,
+        j: usize,
+        act: M16,
+        t_max: F16,
+    ) -> (M16, F16, F16, F16) {
+        T::intersect_moved_lanes(&b.tri, m, j, &self.lanes, act, t_max)
     }
     #[inline(always)]
     fn record(prims: &PrimSet, hit: &mut HitPacket16, m: M16, t: F16, uv: (F16, F16), code: i32) {

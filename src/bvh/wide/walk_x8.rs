@@ -67,6 +67,8 @@ pub(crate) struct Frustum {
     /// o_lo otherwise) and from the exit plane (the other one).
     o_near: [f32x8; 3],
     o_far: [f32x8; 3],
+    /// Every lane has the same origin (`o_near`, then, is it).
+    one_origin: bool,
     /// Per axis: least and largest 1/d over the lanes.
     r_lo: [f32x8; 3],
     r_hi: [f32x8; 3],
@@ -98,15 +100,16 @@ impl Frustum {
         // one origin for every lane (a camera's packets): it is both bounds, no six
         // reductions (no closures over lanes: see `simd::packet`)
         let o0 = [o[0].lane(first), o[1].lane(first), o[2].lane(first)];
-        let (o_lo, o_hi) =
-            if all_eq(o[0], o0[0], act) && all_eq(o[1], o0[1], act) && all_eq(o[2], o0[2], act) {
-                (o0, o0)
-            } else {
-                (
-                    [min_in(o[0], act), min_in(o[1], act), min_in(o[2], act)],
-                    [max_in(o[0], act), max_in(o[1], act), max_in(o[2], act)],
-                )
-            };
+        let one_origin =
+            all_eq(o[0], o0[0], act) && all_eq(o[1], o0[1], act) && all_eq(o[2], o0[2], act);
+        let (o_lo, o_hi) = if one_origin {
+            (o0, o0)
+        } else {
+            (
+                [min_in(o[0], act), min_in(o[1], act), min_in(o[2], act)],
+                [max_in(o[0], act), max_in(o[1], act), max_in(o[2], act)],
+            )
+        };
         let d0 = [
             L::splat(d[0].lane(first)),
             L::splat(d[1].lane(first)),
@@ -136,6 +139,7 @@ impl Frustum {
         Ok(Frustum {
             o_near: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_hi[a] } else { o_lo[a] })),
             o_far: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_lo[a] } else { o_hi[a] })),
+            one_origin,
             r_lo: r_lo.map(s),
             r_hi: r_hi.map(s),
         })
@@ -225,21 +229,6 @@ pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
     Some(oct)
 }
 
-/// The vertices of triangle `j` of a block, splatted for a packet kernel (the block
-/// holds the triangle's floats, copied; one broadcast from memory each).
-#[inline(always)]
-pub(super) fn block_vertices<L: simd::Lanes>(b: &TriBlock, j: usize) -> [[L; 3]; 3] {
-    // by reference (a `map` over the arrays by value copied each to the stack first),
-    // and no closure (see `simd::packet`)
-    let v = &b.tri.v;
-    let c = |i: usize, a: usize| v[i][a].as_array()[j];
-    [
-        [L::splat(c(0, 0)), L::splat(c(0, 1)), L::splat(c(0, 2))],
-        [L::splat(c(1, 0)), L::splat(c(1, 1)), L::splat(c(1, 2))],
-        [L::splat(c(2, 0)), L::splat(c(2, 1)), L::splat(c(2, 2))],
-    ]
-}
-
 /// The binary leaf box of triangle `j` of a block, as a binary node (its packet slab
 /// test is the one the binary packet walk runs on that leaf).
 #[inline(always)]
@@ -267,6 +256,16 @@ pub(crate) trait WidePacket {
     fn triangle<T: TriangleKernel>(
         &self,
         b: &TriBlock,
+        j: usize,
+        act: Mask<Self>,
+        t_max: Self::L,
+    ) -> (Mask<Self>, Self::L, Self::L, Self::L);
+    /// [`WidePacket::triangle`] when every lane has the origin block `b` was moved
+    /// to (`m`, [`TriangleKernel::move_block`]).
+    fn moved_triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        m: &T::Moved,
         j: usize,
         act: Mask<Self>,
         t_max: Self::L,
@@ -324,8 +323,22 @@ impl WidePacket for RayPacket8 {
         act: Mask8,
         t_max: f32x8,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
-        let v = block_vertices::<f32x8>(b, j).map(|p| Vec3x8::new(p[0], p[1], p[2]));
+        let v = b
+            .tri
+            .splat_lanes::<f32x8>(j)
+            .map(|p| Vec3x8::new(p[0], p[1], p[2]));
         T::intersect_splat_x8(v, self, act, t_max)
+    }
+    #[inline(always)]
+    fn moved_triangle<T: TriangleKernel>(
+        &self,
+        b: &TriBlock,
+        m: &T::Moved,
+        j: usize,
+        act: Mask8,
+        t_max: f32x8,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        T::intersect_moved_lanes(&b.tri, m, j, &simd::packet::RayLanes::of(self), act, t_max)
     }
     #[inline(always)]
     fn record(
@@ -485,11 +498,17 @@ impl Bvh {
                 (t_hi, dirty) = (max_in(P::hit_t(hit), act), false);
             }
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
+            // one origin (a camera's packet) and two or more candidates: the block's
+            // vertices translated to it once, eight triangles at a time
+            let moved = (fr.one_origin && bits != 0).then(|| T::move_block(&b.tri, fr.o_near));
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 steps.prims += 1;
-                let (m, t, u, v) = r.triangle::<T>(b, j, act, P::hit_t(hit));
+                let (m, t, u, v) = match &moved {
+                    Some(mv) => r.moved_triangle::<T>(b, mv, j, act, P::hit_t(hit)),
+                    None => r.triangle::<T>(b, j, act, P::hit_t(hit)),
+                };
                 if m.none() {
                     continue;
                 }
