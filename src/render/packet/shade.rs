@@ -162,7 +162,7 @@ fn pow_uniform(x: f32x8, mut e: u32) -> f32x8 {
     let (mut acc, mut sq) = (f32x8::splat(1.0), x);
     loop {
         if e & 1 == 1 {
-            acc = acc * sq;
+            acc *= sq;
         }
         e >>= 1;
         if e == 0 {
