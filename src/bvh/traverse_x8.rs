@@ -193,7 +193,11 @@ impl Bvh {
             self.prims.bound_by_floor_x8(r, active, hit);
         }
         if spread >= 0.0 && !self.wide.nodes.is_empty() {
-            let act = active & finite_lanes(r);
+            let act = self.enter_x8(r, active & finite_lanes(r), hit.t);
+            if act.none() {
+                self.intersect_beside_x8::<T>(r, active, hit, steps);
+                return;
+            }
             let how_far = match shared_octant(r, act) {
                 Some(oct) => match self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) {
                     Ok(()) => {
@@ -210,6 +214,16 @@ impl Bvh {
             }
         }
         self.intersect_x8_binary::<T>(r, active, hit, steps);
+    }
+
+    /// The lanes of `active` (finite) that enter the root's box before `t_max`: only
+    /// they can meet anything in the tree (the root's test is the binary walk's first,
+    /// and every walk reports what the binary walk reports), so a frustum walk takes
+    /// those alone (a tighter frustum) and none when there are none (shadow and mirror
+    /// rays from a floor around the mesh). A tree with nodes only.
+    #[inline(always)]
+    pub(crate) fn enter_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        self.nodes[0].intersect_x8(r, active, t_max)
     }
 
     /// [`Bvh::intersect_x8`] per lane: each lane of `active` gets what
@@ -573,14 +587,14 @@ impl Bvh {
         let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
         // `None`: the frustum walk not tried (the binary walk)
         let frustum = match wide_octant {
-            Some((octant, spread)) if left.any() => Some(self.occluded_x8_wide::<T>(
-                r,
-                left & finite_lanes(r),
-                octant,
-                spread,
-                t_max,
-                steps,
-            )),
+            Some((octant, spread)) if left.any() => {
+                let enter = self.enter_x8(r, left & finite_lanes(r), t_max);
+                Some(if enter.none() {
+                    Ok(Mask8::NONE)
+                } else {
+                    self.occluded_x8_wide::<T>(r, enter, octant, spread, t_max, steps)
+                })
+            }
             _ => None,
         };
         if let Some(Ok(blocked)) = frustum {
