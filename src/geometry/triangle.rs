@@ -773,6 +773,55 @@ mod tests {
         }
     }
 
+    /// A block moved to a packet's one origin gives every lane, bit for bit, what the
+    /// single-ray kernel gives it: near and far origins (where translating rounds),
+    /// every permutation, hits and misses.
+    #[test]
+    fn a_block_moved_to_the_one_origin_gives_each_lane_its_own_hit() {
+        let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut rnd = move || rng.f32() * 2.0 - 1.0;
+        let mut hits = 0;
+        for round in 0..300 {
+            let scale = [1.0f32, 1e3, 3e5][round % 3];
+            let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
+            let tris: [Triangle32; 8] = std::array::from_fn(|_| Triangle32 {
+                v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
+            });
+            let block = Triangle8::new(&tris);
+            // the eye off to one side of the cluster, by axis in turn (each kz)
+            let mut eye = centre;
+            eye[round % 3] += 0.2 * scale * if round % 2 == 0 { 1.0 } else { -1.0 };
+            let dirs: [Vec3; 8] = std::array::from_fn(|_| {
+                let aim = centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale);
+                (aim - eye).normalize()
+            });
+            let p = RayPacket8::new(Vec3x8::splat(eye), Vec3x8::from_lanes(&dirs), Mask8::ALL);
+            let moved = Watertight::move_block(&block, [eye.x, eye.y, eye.z].map(f32x8::splat));
+            let lanes = simd::packet::RayLanes::of(&p);
+            for (j, tri) in tris.iter().enumerate() {
+                let (m, t, u, v) = Watertight::intersect_moved_lanes(
+                    &block,
+                    &moved,
+                    j,
+                    &lanes,
+                    Mask8::ALL,
+                    f32x8::splat(f32::INFINITY),
+                );
+                for l in 0..8 {
+                    let want = tri.intersect_1(&p.ray(l), f32::INFINITY);
+                    let got = m
+                        .lane(l)
+                        .then(|| (t.as_array()[l], u.as_array()[l], v.as_array()[l]));
+                    let bits =
+                        |h: Option<(f32, f32, f32)>| h.map(|h| [h.0, h.1, h.2].map(f32::to_bits));
+                    assert_eq!(bits(got), bits(want), "round {round} triangle {j} lane {l}");
+                    hits += want.is_some() as usize;
+                }
+            }
+        }
+        assert!(hits > 1000, "too few hits to compare: {hits}");
+    }
+
     #[test]
     fn hit_inside_gives_t_barycentrics_and_normal() {
         let r = Ray::new(DVec3::new(0.25, 0.25, 2.0), DVec3::NEG_Z);
