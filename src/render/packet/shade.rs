@@ -9,7 +9,6 @@ use super::{Offset, Settings, Tracer};
 use crate::bvh::Steps;
 use crate::math::packet::{Cmp8, Mask8, RayPacket8, Vec3x8};
 use crate::render::RenderStats;
-use crate::simd::packet::all_eq;
 
 /// Lights whose shadow packets [`Tracer::phong`] sets up together.
 const SHADOW_BATCH: usize = 4;
@@ -67,7 +66,7 @@ impl<S: Settings> Tracer<'_, S> {
                 let rv = r.dot(view).max(zero);
                 // x^0 = 1 and 0^s = 0 (s > 0), as f64::powf
                 let pow = match self.whole_shine {
-                    Some(bits) => pow_whole(rv, g.shine, bits, lit),
+                    Some(bits) => pow_whole(rv, g.shine, bits),
                     None => rv.powf_simd(g.shine),
                 };
                 let spec = rv
@@ -133,17 +132,9 @@ impl<S: Settings> Tracer<'_, S> {
 
 /// `x^e` per lane by repeated squaring, for exponents `e` that are whole numbers
 /// below 2^`bits`: `bits` multiplies and selects, where `powf` takes a logarithm and
-/// an exponential. Lanes outside `lanes` are left undefined. When every lane of
-/// `lanes` has the same exponent (one material in view), its bits steer the loop
-/// instead of per-lane selects, with the same products in the same order.
+/// an exponential.
 #[inline(always)]
-fn pow_whole(x: f32x8, e: f32x8, bits: u32, lanes: Mask8) -> f32x8 {
-    if lanes.any() {
-        let e0 = e.as_array()[lanes.bits().trailing_zeros() as usize];
-        if all_eq(e, e0, lanes) {
-            return pow_uniform(x, e0 as u32);
-        }
-    }
+fn pow_whole(x: f32x8, e: f32x8, bits: u32) -> f32x8 {
     let (mut acc, mut sq, mut e) = (f32x8::splat(1.0), x, e);
     for k in 0..bits {
         if k > 0 {
@@ -156,22 +147,6 @@ fn pow_whole(x: f32x8, e: f32x8, bits: u32, lanes: Mask8) -> f32x8 {
     acc
 }
 
-/// [`pow_whole`] of one exponent `e` in every lane.
-#[inline(always)]
-fn pow_uniform(x: f32x8, mut e: u32) -> f32x8 {
-    let (mut acc, mut sq) = (f32x8::splat(1.0), x);
-    loop {
-        if e & 1 == 1 {
-            acc *= sq;
-        }
-        e >>= 1;
-        if e == 0 {
-            return acc;
-        }
-        sq = sq * sq;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,10 +156,7 @@ mod tests {
         let x = f32x8::new([0.0, 1e-3, 0.1, 0.5, 0.7, 0.9, 0.999, 1.0]);
         for e in [0u32, 1, 2, 3, 5, 10, 15, 16, 100, 255] {
             let bits = u32::BITS - e.leading_zeros();
-            let got = pow_whole(x, f32x8::splat(e as f32), bits, Mask8::ALL).to_array();
-            // the per-lane loop (no lane given) gives the same bits
-            let general = pow_whole(x, f32x8::splat(e as f32), bits, Mask8::NONE).to_array();
-            assert_eq!(got.map(f32::to_bits), general.map(f32::to_bits), "x^{e}");
+            let got = pow_whole(x, f32x8::splat(e as f32), bits).to_array();
             for (g, xv) in got.iter().zip(x.to_array()) {
                 // relative, down to where f32 goes subnormal
                 let want = (xv as f64).powi(e as i32);
@@ -197,7 +169,7 @@ mod tests {
         }
         // lanes with different exponents
         let e = f32x8::new([0.0, 1.0, 2.0, 3.0, 4.0, 7.0, 8.0, 9.0]);
-        let got = pow_whole(f32x8::splat(0.5), e, 4, Mask8::ALL).to_array();
+        let got = pow_whole(f32x8::splat(0.5), e, 4).to_array();
         for (g, k) in got.iter().zip(e.to_array()) {
             assert_eq!(*g, 0.5f32.powi(k as i32));
         }
