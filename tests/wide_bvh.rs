@@ -949,3 +949,59 @@ fn packets_bounded_by_the_floor_get_the_unbounded_hits() {
         }
     }
 }
+
+/// A packet whose lanes' origins differ only in the sign of a zero is not one of one
+/// origin: each lane gets its own bits (a vertex at −0 moved to +0 and to −0 gives
+/// zeros of different signs, which reach the barycentrics), through the frustum walk
+/// as through the binary single-ray walk.
+#[test]
+fn origins_differing_in_a_zeros_sign_keep_each_lanes_bits() {
+    let mut tris = vec![Triangle32 {
+        v: [
+            Vec3::new(-0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+    }];
+    // enough triangles beside it for a wide tree
+    for i in 0..200 {
+        let (x, y) = (3.0 + (i % 20) as f32, 3.0 + (i / 20) as f32);
+        tris.push(Triangle32 {
+            v: [
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 0.5, y, 0.0),
+                Vec3::new(x, y + 0.5, 0.0),
+            ],
+        });
+    }
+    let bvh = Bvh::build(PrimSet::from_triangles(tris));
+    assert!(!bvh.wide.nodes.is_empty());
+    for (first, rest) in [(0.0f32, -0.0f32), (-0.0, 0.0)] {
+        let mut o = [Vec3::new(rest, 0.0, 5.0); 8];
+        o[0].x = first;
+        let p = RayPacket8::new(
+            Vec3x8::from_lanes(&o),
+            Vec3x8::splat(Vec3::NEG_Z),
+            Mask8::ALL,
+        );
+        for spread in [FRUSTUM_SPREAD, f32::INFINITY] {
+            let mut hp = HitPacket8::new(f32x8::splat(f32::INFINITY));
+            let mut s = Steps::default();
+            bvh.intersect_x8_spread::<Watertight>(&p, Mask8::ALL, spread, &mut hp, &mut s);
+            for l in 0..8 {
+                let mut h = Hit1::new(f32::INFINITY);
+                bvh.intersect_1_binary::<Watertight>(&p.ray(l), &mut h, &mut s);
+                assert!(h.is_hit(), "lane {l} meets the triangle at its corner");
+                let bits = |t: f32, u: f32, v: f32| [t, u, v].map(f32::to_bits);
+                assert_eq!(
+                    (
+                        hp.prim_lane(l),
+                        bits(hp.t.to_array()[l], hp.u.to_array()[l], hp.v.to_array()[l])
+                    ),
+                    (h.prim, bits(h.t, h.u, h.v)),
+                    "origins x = {first} then {rest}, spread {spread}, lane {l}"
+                );
+            }
+        }
+    }
+}

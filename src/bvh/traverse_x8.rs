@@ -220,9 +220,11 @@ impl Bvh {
     /// they can meet anything in the tree (the root's test is the binary walk's first,
     /// and every walk reports what the binary walk reports), so a frustum walk takes
     /// those alone (a tighter frustum) and none when there are none (shadow and mirror
-    /// rays from a floor around the mesh). A tree with nodes only.
+    /// rays from a floor around the mesh). Called with a wide tree only (which has a
+    /// binary root); not counted in `Steps::boxes` (wide node tests).
     #[inline(always)]
     pub(crate) fn enter_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
+        debug_assert!(!self.nodes.is_empty(), "a tree with a root");
         self.nodes[0].intersect_x8(r, active, t_max)
     }
 

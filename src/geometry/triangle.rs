@@ -575,8 +575,8 @@ pub trait TriangleKernel: Copy + Send + Sync + 'static {
     /// [`TriangleKernel::Moved`] of block `b` for the origin `o` (splatted).
     fn move_block(b: &Triangle8, o: [f32x8; 3]) -> Self::Moved;
 
-    /// Triangle `j` of block `b`, moved to `m`, against a packet whose every lane has
-    /// the origin the block was moved to; lane for lane what
+    /// Triangle `j` of block `b`, moved to `m`, against a packet whose every lane of
+    /// `active` has, bit for bit, the origin the block was moved to; lane for lane what
     /// [`TriangleKernel::intersect_splat_lanes`] returns for that triangle.
     fn intersect_moved_lanes<L: simd::Lanes>(
         b: &Triangle8,
@@ -774,13 +774,19 @@ mod tests {
     }
 
     /// A block moved to a packet's one origin gives every lane, bit for bit, what the
-    /// single-ray kernel gives it: near and far origins (where translating rounds),
-    /// every permutation, hits and misses.
+    /// single-ray kernel gives it, under both triangle tests: near and far origins
+    /// (where translating rounds), every permutation and lanes of mixed permutations,
+    /// hits and misses, lanes left out of `active` untouched by the answer.
     #[test]
     fn a_block_moved_to_the_one_origin_gives_each_lane_its_own_hit() {
+        moved_block_lanes::<Watertight>();
+        moved_block_lanes::<crate::geometry::moller::Moller>();
+    }
+
+    fn moved_block_lanes<T: TriangleKernel>() {
         let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
         let mut rnd = move || rng.f32() * 2.0 - 1.0;
-        let mut hits = 0;
+        let (mut hits, mut mixed) = (0, 0);
         for round in 0..300 {
             let scale = [1.0f32, 1e3, 3e5][round % 3];
             let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
@@ -788,27 +794,38 @@ mod tests {
                 v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
             });
             let block = Triangle8::new(&tris);
-            // the eye off to one side of the cluster, by axis in turn (each kz)
+            // the eye off to one side of the cluster, by axis in turn (each kz), every
+            // fourth round off along a diagonal (lanes of different kz)
             let mut eye = centre;
-            eye[round % 3] += 0.2 * scale * if round % 2 == 0 { 1.0 } else { -1.0 };
+            let side = if round % 2 == 0 { 0.2 } else { -0.2 } * scale;
+            eye[round % 3] += side;
+            if round % 4 == 3 {
+                eye[(round + 1) % 3] += side;
+            }
             let dirs: [Vec3; 8] = std::array::from_fn(|_| {
                 let aim = centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale);
                 (aim - eye).normalize()
             });
             let p = RayPacket8::new(Vec3x8::splat(eye), Vec3x8::from_lanes(&dirs), Mask8::ALL);
-            let moved = Watertight::move_block(&block, [eye.x, eye.y, eye.z].map(f32x8::splat));
+            mixed += (p.kz_all == 3) as usize;
+            let moved = T::move_block(&block, [eye.x, eye.y, eye.z].map(f32x8::splat));
             let lanes = simd::packet::RayLanes::of(&p);
+            let active = Mask8::from_bits(if round % 5 == 0 { 0b1011_0110 } else { 0xff });
             for (j, tri) in tris.iter().enumerate() {
-                let (m, t, u, v) = Watertight::intersect_moved_lanes(
+                let (m, t, u, v) = T::intersect_moved_lanes(
                     &block,
                     &moved,
                     j,
                     &lanes,
-                    Mask8::ALL,
+                    active,
                     f32x8::splat(f32::INFINITY),
                 );
                 for l in 0..8 {
-                    let want = tri.intersect_1(&p.ray(l), f32::INFINITY);
+                    let want = if active.lane(l) {
+                        T::intersect_1(tri, &p.ray(l), f32::INFINITY)
+                    } else {
+                        None
+                    };
                     let got = m
                         .lane(l)
                         .then(|| (t.as_array()[l], u.as_array()[l], v.as_array()[l]));
@@ -820,6 +837,7 @@ mod tests {
             }
         }
         assert!(hits > 1000, "too few hits to compare: {hits}");
+        assert!(mixed > 10, "too few packets of mixed permutations: {mixed}");
     }
 
     #[test]

@@ -119,6 +119,14 @@ pub fn all_eq<L: Lanes>(v: L, s: f32, m: L::Mask) -> bool {
     m.and_not(v.eq(L::splat(s))).none()
 }
 
+/// Whether every lane of `m` holds the bits of `s` in `v` (no NaN in `m`): [`all_eq`],
+/// with −0 and +0 told apart.
+#[inline(always)]
+pub fn all_same<L: Lanes>(v: L, s: f32, m: L::Mask) -> bool {
+    let sign = if s.is_sign_negative() { -1.0 } else { 1.0 };
+    all_eq(v, s, m) && all_eq(L::select_by_sign(v, L::splat(-1.0), L::splat(1.0)), sign, m)
+}
+
 #[cfg(target_arch = "x86_64")]
 pub(crate) use x16::{HitPacket16, RayPacket16};
 

@@ -40,7 +40,7 @@ use crate::geometry::triangle::TriangleKernel;
 use crate::geometry::{PrimKind, prim_code};
 use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8};
 use crate::simd;
-use crate::simd::packet::{all_eq, dot3, max_in, min_in};
+use crate::simd::packet::{all_same, dot3, max_in, min_in};
 
 /// Largest spread of a packet served by the wide packet walk (radians between lane
 /// directions; origins: this fraction of the tree's diagonal); wider packets take the
@@ -67,8 +67,9 @@ pub(crate) struct Frustum {
     /// o_lo otherwise) and from the exit plane (the other one).
     o_near: [f32x8; 3],
     o_far: [f32x8; 3],
-    /// Every lane has the same origin (`o_near`, then, is it).
-    one_origin: bool,
+    /// The origin of every lane of the packet's `act`, when they all have the same bits
+    /// (a camera's packets), splatted.
+    origin: Option<[f32x8; 3]>,
     /// Per axis: least and largest 1/d over the lanes.
     r_lo: [f32x8; 3],
     r_hi: [f32x8; 3],
@@ -98,10 +99,12 @@ impl Frustum {
         let neg = [0, 1, 2].map(|a| (octant >> a & 1) as usize);
         let first = act.bits().trailing_zeros() as usize;
         // one origin for every lane (a camera's packets): it is both bounds, no six
-        // reductions (no closures over lanes: see `simd::packet`)
+        // reductions (no closures over lanes: see `simd::packet`); the same bits, not
+        // only the same value, since a block is moved to it (−0 and +0 move a vertex of
+        // −0 to different zeros)
         let o0 = [o[0].lane(first), o[1].lane(first), o[2].lane(first)];
         let one_origin =
-            all_eq(o[0], o0[0], act) && all_eq(o[1], o0[1], act) && all_eq(o[2], o0[2], act);
+            all_same(o[0], o0[0], act) && all_same(o[1], o0[1], act) && all_same(o[2], o0[2], act);
         let (o_lo, o_hi) = if one_origin {
             (o0, o0)
         } else {
@@ -139,7 +142,7 @@ impl Frustum {
         Ok(Frustum {
             o_near: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_hi[a] } else { o_lo[a] })),
             o_far: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_lo[a] } else { o_hi[a] })),
-            one_origin,
+            origin: one_origin.then(|| o0.map(s)),
             r_lo: r_lo.map(s),
             r_hi: r_hi.map(s),
         })
@@ -260,8 +263,8 @@ pub(crate) trait WidePacket {
         act: Mask<Self>,
         t_max: Self::L,
     ) -> (Mask<Self>, Self::L, Self::L, Self::L);
-    /// [`WidePacket::triangle`] when every lane has the origin block `b` was moved
-    /// to (`m`, [`TriangleKernel::move_block`]).
+    /// [`WidePacket::triangle`] when every lane of `act` has, bit for bit, the origin
+    /// block `b` was moved to (`m`, [`TriangleKernel::move_block`]).
     fn moved_triangle<T: TriangleKernel>(
         &self,
         b: &TriBlock,
@@ -498,9 +501,12 @@ impl Bvh {
                 (t_hi, dirty) = (max_in(P::hit_t(hit), act), false);
             }
             let mut bits = fr.block_candidates::<OCT>(b, t_hi);
-            // one origin (a camera's packet) and two or more candidates: the block's
-            // vertices translated to it once, eight triangles at a time
-            let moved = (fr.one_origin && bits != 0).then(|| T::move_block(&b.tri, fr.o_near));
+            // one origin (a camera's packet) and a candidate: the block's vertices
+            // translated to it once, eight triangles at a time
+            let moved = fr
+                .origin
+                .filter(|_| bits != 0)
+                .map(|o| T::move_block(&b.tri, o));
             while bits != 0 {
                 let j = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
