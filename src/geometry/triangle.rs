@@ -678,11 +678,7 @@ impl TriangleKernel for Watertight {
     fn move_block(b: &Triangle8, o: [f32x8; 3]) -> Triangle8 {
         let v = &b.v;
         Triangle8 {
-            v: [
-                [v[0][0] - o[0], v[0][1] - o[1], v[0][2] - o[2]],
-                [v[1][0] - o[0], v[1][1] - o[1], v[1][2] - o[2]],
-                [v[2][0] - o[0], v[2][1] - o[1], v[2][2] - o[2]],
-            ],
+            v: [sub3(v[0], o), sub3(v[1], o), sub3(v[2], o)],
         }
     }
 
