@@ -26,6 +26,7 @@ use wide::f32x8;
 impl WidePacket for RayPacket16 {
     type L = F16;
     type Hit = HitPacket16;
+    const LEAVES_PER_LANE: bool = true;
     #[inline(always)]
     fn rays(&self) -> [[F16; 3]; 3] {
         [self.lanes.origin, self.lanes.dir, self.lanes.inv_dir]

@@ -245,12 +245,41 @@ fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
     }
 }
 
+/// The lanes of `act` that meet slot `s` of `node` with 0 <= t <= t_max, by the
+/// binary walk's slab test of that box (`BvhNode::intersect_lanes`, the slot's box is
+/// that node's, bit for bit) with the entry planes of the direction signs `OCT` (the
+/// same values: see `BvhNode::intersect_x8_oct`).
+#[inline(always)]
+fn slot_lanes<L: simd::Lanes, const OCT: u32>(
+    node: &super::WideNode,
+    s: usize,
+    o: [L; 3],
+    inv: [L; 3],
+    act: L::Mask,
+    t_max: L,
+) -> L::Mask {
+    let near = |a: usize| 2 * a + (OCT >> a & 1) as usize;
+    let t = |k: usize, a: usize| (L::splat(node.bounds[k].as_array()[s]) - o[a]) * inv[a];
+    let entry = t(near(0), 0)
+        .fast_max(t(near(1), 1))
+        .fast_max(t(near(2), 2).fast_max(L::zero()));
+    let exit = t(near(0) ^ 1, 0)
+        .fast_min(t(near(1) ^ 1, 1))
+        .fast_min(t(near(2) ^ 1, 2).fast_min(t_max))
+        * L::splat(FAR_WIDEN);
+    act & entry.le(exit)
+}
+
 /// A packet the frustum walks trace: eight lanes ([`RayPacket8`]) or sixteen
 /// ([`RayPacket16`], the `avx512` kernels). What differs between the widths is here;
 /// the walks are one code.
 pub(crate) trait WidePacket {
     type L: simd::Lanes;
     type Hit;
+    /// Whether the any-hit walk tests each leaf the frustum meets against every lane
+    /// before it is pushed ([`Bvh::entered_leaves`]): it pays at sixteen lanes, whose
+    /// frustum spans twice the origins of eight (benches/README.md).
+    const LEAVES_PER_LANE: bool;
     /// Origins, unit directions and 1/d of the lanes.
     fn rays(&self) -> [[Self::L; 3]; 3];
     /// The lanes' nearest hit so far.
@@ -310,6 +339,7 @@ pub(crate) type Mask<P> = <<P as WidePacket>::L as simd::Lanes>::Mask;
 impl WidePacket for RayPacket8 {
     type L = f32x8;
     type Hit = HitPacket8;
+    const LEAVES_PER_LANE: bool = false;
     #[inline(always)]
     fn rays(&self) -> [[f32x8; 3]; 3] {
         [self.origin, self.dir, self.inv_dir].map(|v| [v.x, v.y, v.z])
@@ -597,6 +627,9 @@ impl Bvh {
                 let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
                 let mut bits = fr.test::<OCT>(&node.bounds, t_hi).0;
+                if P::LEAVES_PER_LANE {
+                    bits = self.entered_leaves::<P, OCT>(r, node, bits, left, t_max);
+                }
                 w.prefetch_children(node, bits, true);
                 while bits != 0 {
                     let s = bits.trailing_zeros() as usize;
@@ -634,5 +667,35 @@ impl Bvh {
             }
         }
         act.and_not(left)
+    }
+
+    /// Of the slots `bits` of `node` (those the frustum meets), all the interior ones
+    /// and the leaves that some lane of `act` meets by its own slab test (the binary
+    /// walk's test of the slot's box, [`slot_lanes`]): a lane that misses the slot's box
+    /// misses every binary leaf box in it, so its walk would never test those
+    /// triangles. The frustum of origins spread over a surface (shadow rays) meets
+    /// many small leaves between the lanes that no lane meets.
+    #[inline(always)]
+    fn entered_leaves<P: WidePacket, const OCT: u32>(
+        &self,
+        r: &P,
+        node: &super::WideNode,
+        bits: u32,
+        act: Mask<P>,
+        t_max: P::L,
+    ) -> u32 {
+        use simd::LaneMask as _;
+        let [o, _, inv] = r.rays();
+        let (mut keep, mut scan) = (bits, bits);
+        while scan != 0 {
+            let s = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            if !node.slot[s].is_interior()
+                && slot_lanes::<P::L, OCT>(node, s, o, inv, act, t_max).none()
+            {
+                keep &= !(1 << s);
+            }
+        }
+        keep
     }
 }
