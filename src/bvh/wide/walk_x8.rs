@@ -8,14 +8,15 @@
 //! some lane may enter and gives a lower bound of their entry distances; the children
 //! are visited nearest first, and a popped subtree is skipped when that bound lies
 //! behind every active lane's nearest hit. Nothing is decided per lane above the
-//! leaves. In a leaf, the frustum test of a triangle block's per-lane binary leaf boxes
-//! picks the triangles to test (all of them in a block of one binary leaf, whose box
-//! the frustum has passed); each is tested against the whole packet with the packet
-//! kernel (`TriangleKernel::intersect_splat_x8`, the binary packet walk's, or at 16
-//! lanes its twin `intersect_splat_lanes`), and a lane's
-//! hit counts only when the lane also passes that triangle's binary leaf box (the
-//! single-ray wide walk's rule, see [`TriBlock`]), so a lane reports what
-//! the binary walks report for it.
+//! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
+//! own slab test meets its box ([`Bvh::entered_leaves`]). In a leaf, the frustum test
+//! of a triangle block's per-lane binary leaf boxes picks the triangles to test (all of
+//! them in a block of one binary leaf, whose box the frustum has passed); each is
+//! tested against the whole packet with the packet kernel
+//! (`TriangleKernel::intersect_splat_x8`, the binary packet walk's, or at 16 lanes its
+//! twin `intersect_splat_lanes`), and a lane's hit counts only when the lane also
+//! passes that triangle's binary leaf box (the single-ray wide walk's rule, see
+//! [`TriBlock`]), so a lane reports what the binary walks report for it.
 //!
 //! Why the bound is exact enough to be safe: for one axis and plane p, lane i computes
 //! t_i = fl(fl(p − o_i) · r_i) (r = 1/d). Rounding is monotone, so with o_i in
