@@ -247,10 +247,96 @@ impl WideBvh {
     }
 }
 
+impl WideBvh {
+    /// Pushes a node's hit children `bits` for an any-hit walk: the interior child met
+    /// farthest away (entry distance `near`) after the other interior children, to be
+    /// visited first of them, and with `leaves_last` the leaves after every interior
+    /// child (tested first); no sort, one pass over the slots. A shadow ray leaves a surface: the subtrees around its origin
+    /// hold that surface, which it has left, and a blocker lies farther on (figures in
+    /// benches/README.md: the order changes no answer, only how soon a walk ends).
+    #[inline(always)]
+    pub(super) fn push_any_hit(
+        node: &WideNode,
+        near: f32x8,
+        mut bits: u32,
+        leaves_last: bool,
+        stack: &mut super::slot::Stack<SlotRef, WIDE_STACK>,
+    ) {
+        let nd = near.to_array();
+        let (mut far, mut far_t) = (None, f32::NEG_INFINITY);
+        let mut leaves = 0u32;
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let child = node.get(s);
+            if !child.slot.is_interior() && leaves_last {
+                leaves |= 1 << s;
+            } else if child.slot.is_interior() && nd[s] > far_t {
+                if let Some(f) = far {
+                    stack.push(node.get(f));
+                }
+                (far, far_t) = (Some(s), nd[s]);
+            } else {
+                stack.push(child);
+            }
+        }
+        if let Some(f) = far {
+            stack.push(node.get(f));
+        }
+        while leaves != 0 {
+            let s = leaves.trailing_zeros() as usize;
+            leaves &= leaves - 1;
+            stack.push(node.get(s));
+        }
+    }
+}
+
 /// A child left on the stack of an ordered walk, with the entry distance it was met at
 /// (skipped when popped behind the nearest hit).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Pending {
     pub to: SlotRef,
     pub near: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::slot::Stack;
+
+    /// Pops everything: the children in the order an any-hit walk visits them.
+    fn visits(leaves_last: bool) -> Vec<u32> {
+        let mut node = WideNode::empty();
+        // slots 0–5: interior, leaf, interior, interior, leaf, interior; child = slot
+        for s in 0..6 {
+            node.child[s] = s as u32;
+            node.slot[s] = if s == 1 || s == 4 {
+                Slot::leaf(PrimKind::Triangle, 3)
+            } else {
+                Slot::INTERIOR
+            };
+        }
+        let near = f32x8::new([0.5, 9.0, 2.0, 7.0, 1.0, 3.0, 0.0, 0.0]);
+        // slot 5 missed
+        let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
+        WideBvh::push_any_hit(&node, near, 0b01_1111, leaves_last, &mut stack);
+        std::iter::from_fn(|| stack.pop().map(|r| r.child)).collect()
+    }
+
+    #[test]
+    fn an_any_hit_walk_visits_the_farthest_interior_child_first() {
+        // interior 0, 2, 3 met at 0.5, 2 and 7, leaves 1 and 4
+        let sorted = |v: &[u32]| {
+            let mut v = v.to_vec();
+            v.sort();
+            v
+        };
+        let v = visits(true);
+        assert_eq!(sorted(&v[..2]), [1, 4], "the leaves first: {v:?}");
+        assert_eq!(v[2], 3, "then the farthest interior child: {v:?}");
+        assert_eq!(sorted(&v), [0, 1, 2, 3, 4]);
+        let v = visits(false);
+        assert_eq!(v[0], 3, "the farthest interior child first: {v:?}");
+        assert_eq!(sorted(&v), [0, 1, 2, 3, 4]);
+    }
 }

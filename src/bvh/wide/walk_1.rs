@@ -422,7 +422,8 @@ impl Bvh {
     }
 
     /// One step of the any-hit walk, the entry on top of `stack`: a node, whose hit
-    /// children are pushed, its leaves last (tested next: when walks are stepped in
+    /// children are pushed ([`WideBvh::push_any_hit`]: the farthest interior child
+    /// visited first of those, its leaves last, tested next: when walks are stepped in
     /// turn, after a step of every other walk, time for their prefetch to land), or a
     /// leaf, tested. `Some(answer)` when the walk has ended.
     #[inline(always)]
@@ -440,24 +441,10 @@ impl Bvh {
         if cur.slot.is_interior() {
             let node: &WideNode = &w.nodes[cur.child as usize];
             steps.boxes += 1;
-            let mut bits = wr.boxes.test(&node.bounds, t_max).0.bits();
+            let (m, near) = wr.boxes.test(&node.bounds, t_max);
+            let bits = m.bits();
             w.prefetch_children_1(node, bits);
-            let mut leaves = 0u32;
-            while bits != 0 {
-                let s = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let child = node.get(s);
-                if child.slot.is_interior() {
-                    stack.push(child);
-                } else {
-                    leaves |= 1 << s;
-                }
-            }
-            while leaves != 0 {
-                let s = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                stack.push(node.get(s));
-            }
+            WideBvh::push_any_hit(node, near, bits, true, stack);
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);
         }

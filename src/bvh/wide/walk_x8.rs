@@ -627,16 +627,12 @@ impl Bvh {
             if cur.slot.is_interior() {
                 let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
-                let mut bits = fr.test::<OCT>(&node.bounds, t_hi).0;
+                let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
                 if P::LEAVES_PER_LANE {
                     bits = self.entered_leaves::<P, OCT>(r, node, bits, left, t_max);
                 }
                 w.prefetch_children(node, bits, true);
-                while bits != 0 {
-                    let s = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    stack.push(node.get(s));
-                }
+                WideBvh::push_any_hit(node, near, bits, false, &mut stack);
                 continue;
             }
             let (kind, count) = (cur.slot.kind(), cur.slot.count() as usize);
