@@ -156,7 +156,7 @@ impl Bvh {
 
     /// Whether lanes `how_far` apart (as [`Frustum::new`](super::wide::walk_x8) measures
     /// them; ∞ for mixed direction signs) take their own single-ray walks of the wide
-    /// tree stepped in turn: past [`LANES_SPREAD`], in a tree of at least
+    /// tree (closest hit: stepped in turn): past [`LANES_SPREAD`], in a tree of at least
     /// [`LANES_MIN_NODES`] wide nodes.
     #[inline]
     pub(crate) fn lane_walks(&self, how_far: f32) -> bool {
@@ -469,7 +469,7 @@ impl Bvh {
     }
 
     /// [`Bvh::occluded_x8`] per lane: each lane of `active` gets what
-    /// [`Bvh::occluded_1`] gives it, the lanes' walks stepped in turn (incoherent
+    /// [`Bvh::occluded_1`] gives it, the lanes' walks one after another (incoherent
     /// packets here, and the renderer's packets of too few lanes).
     pub fn occluded_x8_lanes<T: TriangleKernel>(
         &self,
@@ -478,15 +478,17 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.occluded_lanes_of::<T, 1, 8>([r], [active], [t_max], true, steps)[0]
+        self.occluded_lanes_of::<T, 1>([r], [active], [t_max], true, steps)[0]
     }
 
-    /// The active lanes of `H` packets (one, or the halves of a 16-lane packet; `N` =
-    /// 8·H) blocked, each what [`Bvh::occluded_1`] answers for it: with `beside`, its
+    /// The active lanes of `H` packets (one, or the halves of a 16-lane packet)
+    /// blocked, each what [`Bvh::occluded_1`] answers for it: with `beside`, its
     /// floor and unbounded quadrics first (`occluded_1`'s order; without, the caller
-    /// has tested them), then the walks of the lanes left, all `N` stepped in turn.
+    /// has tested them), then the walks of the lanes left, one after another. (Unlike
+    /// the closest-hit walks, stepping them in turn does not pay: an any-hit walk
+    /// visits its farthest child first and most end early; benches/README.md.)
     #[inline(always)]
-    pub(crate) fn occluded_lanes_of<T: TriangleKernel, const H: usize, const N: usize>(
+    pub(crate) fn occluded_lanes_of<T: TriangleKernel, const H: usize>(
         &self,
         r: [&RayPacket8; H],
         active: [Mask8; H],
@@ -510,19 +512,14 @@ impl Bvh {
                 *m = m.and_not(Mask8::from_bits(blocked[k]));
             }
         }
-        let (at, n) = lanes_of::<H, N>(left);
-        if n > 0 {
-            let rays: [Ray1; N] = std::array::from_fn(|i| {
-                let (k, l) = at[i.min(n - 1)];
-                r[k].ray(l)
-            });
-            let t: [f32; N] = std::array::from_fn(|i| {
-                let (k, l) = at[i.min(n - 1)];
-                tm[k][l]
-            });
-            let wide = self.occluded_wide_interleaved::<T>(&rays[..n], &t[..n], steps);
-            for (i, &(k, l)) in at[..n].iter().enumerate() {
-                blocked[k] |= (wide >> i & 1) << l;
+        for (k, m) in left.iter().enumerate() {
+            let mut bits = m.bits();
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if self.occluded_wide_1::<T>(&r[k].ray(l), tm[k][l], steps) {
+                    blocked[k] |= 1 << l;
+                }
             }
         }
         blocked.map(Mask8::from_bits)
@@ -604,7 +601,7 @@ impl Bvh {
         } else if let Some(Err(how_far)) = frustum
             && self.lane_walks(how_far)
         {
-            let [blocked] = self.occluded_lanes_of::<T, 1, 8>([r], [left], [t_max], false, steps);
+            let [blocked] = self.occluded_lanes_of::<T, 1>([r], [left], [t_max], false, steps);
             left = left.and_not(blocked);
         } else if !self.nodes.is_empty() && left.any() {
             let mut stack = Stack::<u32, STACK_SIZE>::new();

@@ -371,61 +371,10 @@ impl Bvh {
         }
     }
 
-    /// The tree part of [`Bvh::occluded_1`] for up to sixteen rays at once (bit k of the
-    /// answer: ray k is blocked before `t_max[k]`), their walks stepped in turn as in
-    /// [`Bvh::intersect_wide_interleaved`]; each ray gets its own walk's answer.
-    pub(crate) fn occluded_wide_interleaved<T: TriangleKernel>(
-        &self,
-        rays: &[Ray1],
-        t_max: &[f32],
-        steps: &mut Steps,
-    ) -> u32 {
-        if rays.len() > 8 {
-            with_stacks16(|s| self.occluded_interleaved_with::<T, 16>(rays, t_max, steps, s))
-        } else {
-            with_stacks(|s| self.occluded_interleaved_with::<T, 8>(rays, t_max, steps, s))
-        }
-    }
-
-    /// [`Bvh::occluded_wide_interleaved`] of up to `N` rays with `N` stacks.
-    #[inline(always)]
-    fn occluded_interleaved_with<T: TriangleKernel, const N: usize>(
-        &self,
-        rays: &[Ray1],
-        t_max: &[f32],
-        steps: &mut Steps,
-        stacks: [&mut Stack<SlotRef, WIDE_STACK>; N],
-    ) -> u32 {
-        assert!(rays.len() <= N && rays.len() == t_max.len(), "up to N rays");
-        if self.wide.nodes.is_empty() || rays.is_empty() {
-            return 0;
-        }
-        // (as in `intersect_wide_interleaved`)
-        let walks: [WideRay<T>; N] =
-            std::array::from_fn(|k| WideRay::new(&rays[k.min(rays.len() - 1)]));
-        let live = live_walks(rays);
-        let mut blocked = 0;
-        for k in (0..N).filter(|k| live >> k & 1 == 1) {
-            stacks[k].push(SlotRef::ROOT);
-        }
-        in_turn(live, |k| {
-            let (wr, stack) = (&walks[k], &mut *stacks[k]);
-            let end = with_const!(
-                wr.r.kz,
-                [0, 1, 2],
-                self.occluded_step_1::<T>(wr, stack, t_max[k], steps)
-            );
-            blocked |= ((end == Some(true)) as u32) << k;
-            end.is_none()
-        });
-        blocked
-    }
-
     /// One step of the any-hit walk, the entry on top of `stack`: a node, whose hit
     /// children are pushed ([`WideBvh::push_any_hit`]: the farthest interior child
-    /// visited first of those, its leaves last, tested next: when walks are stepped in
-    /// turn, after a step of every other walk, time for their prefetch to land), or a
-    /// leaf, tested. `Some(answer)` when the walk has ended.
+    /// visited first of those, its leaves last, tested next), or a leaf, tested.
+    /// `Some(answer)` when the walk has ended.
     #[inline(always)]
     fn occluded_step_1<T: TriangleKernel, const KZ: usize>(
         &self,

@@ -8,8 +8,8 @@
 //! triangles are tested against sixteen lanes at once. Spheres and clipped quadrics,
 //! the floor and the unbounded quadrics, and packets just too spread for one frustum
 //! go through the 8-lane code, half by half; packets of mixed direction signs or
-//! scattered far past the frustum's limit step all sixteen lanes' single-ray walks in
-//! turn. A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
+//! scattered far past the frustum's limit take all sixteen lanes' single-ray walks
+//! (closest hit: stepped in turn). A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
 //! same generic code (`tests/lanes.rs`).
 
 use super::TriBlock;
@@ -273,7 +273,7 @@ impl Bvh {
     }
 
     /// [`Bvh::occluded_x16`] per lane: [`Bvh::occluded_lanes_of`] of both halves,
-    /// sixteen walks stepped in turn.
+    /// sixteen walks one after another.
     #[inline(always)]
     fn occluded_x16_lanes<T: TriangleKernel>(
         &self,
@@ -283,7 +283,7 @@ impl Bvh {
         steps: &mut Steps,
     ) -> M16 {
         let halves = [&r.halves[0], &r.halves[1]];
-        let [b0, b1] = self.occluded_lanes_of::<T, 2, 16>(halves, half, t_max, true, steps);
+        let [b0, b1] = self.occluded_lanes_of::<T, 2>(halves, half, t_max, true, steps);
         cat_mask(b0, b1)
     }
 
