@@ -73,8 +73,8 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
         s16.boxes,
         s8.boxes
     );
-    // incoherent packets: each lane's own walk at either width (16 stepped in turn,
-    // or 8), so the same node and triangle tests
+    // incoherent packets: each lane's own walk at either width (closest hit: 16 or 8
+    // stepped in turn; any hit: one after another), so the same node and triangle tests
     let (s8, s16) = same_per_ray("incoherent", &bvh, &incoherent_rays(1 << 14, 3), m16);
     assert_eq!(s8, s16, "incoherent: 8 lanes vs 16");
 }

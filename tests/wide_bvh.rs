@@ -339,6 +339,7 @@ fn wide_equals_binary_on_a_mixed_scene() {
 #[test]
 fn nan_rays_never_hit() {
     let bvh = Bvh::build(PrimSet::from_scene(&mixed_scene(), DVec3::ZERO));
+    let big = torus_bvh();
     let mut steps = Steps::default();
     for (o, d) in [
         (Vec3::new(f32::NAN, 0.0, 10.0), Vec3::NEG_Z),
@@ -352,11 +353,19 @@ fn nan_rays_never_hit() {
             Vec3::new(0.0, 0.0, 10.0),
             Vec3::new(0.0, f32::NEG_INFINITY, -1.0),
         ),
+        // every component infinite: 1/d is ±0 on every axis, finite
+        (Vec3::new(0.0, 0.0, 10.0), Vec3::splat(f32::INFINITY)),
+        (
+            Vec3::new(0.3, -0.2, 0.1),
+            Vec3::new(f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY),
+        ),
     ] {
-        let r = Ray1::new(o, d);
-        let h = closest(&bvh, &r, f32::INFINITY, true, &mut steps);
-        assert!(!h.is_hit(), "NaN ray {r:?} hit {h:?}");
-        assert!(!bvh.occluded_1::<Watertight>(&r, f32::INFINITY, &mut steps));
+        for bvh in [&bvh, &big] {
+            let r = Ray1::new(o, d);
+            let h = closest(bvh, &r, f32::INFINITY, true, &mut steps);
+            assert!(!h.is_hit(), "NaN ray {r:?} hit {h:?}");
+            assert!(!bvh.occluded_1::<Watertight>(&r, f32::INFINITY, &mut steps));
+        }
     }
 }
 
@@ -566,6 +575,13 @@ fn compare_packets_at(
             o[l] = Vec3::new(f32::NAN, 0.0, 0.0);
             nan = 1 << l;
         }
+        if nan_lane && pi % 4 == 3 && bits.count_ones() > 1 {
+            // a direction infinite on every axis, its signs the lane's own: 1/d is all
+            // ±0, finite, and the lane still shares the packet's octant
+            let l = bits.trailing_zeros() as usize;
+            d[l] = d[l].signum() * f32::INFINITY;
+            nan = 1 << l;
+        }
         let active = Mask8::from_bits(bits);
         let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active);
         let shared = (0..8)
@@ -598,7 +614,7 @@ fn compare_packets_at(
             if nan >> l & 1 == 1 {
                 assert!(
                     hp.prim_lane(l) < 0 && !occ.lane(l),
-                    "{name}: NaN lane {l} hit"
+                    "{name}: NaN or infinite lane {l} hit"
                 );
                 continue;
             }

@@ -485,8 +485,9 @@ impl Bvh {
     /// blocked, each what [`Bvh::occluded_1`] answers for it: with `beside`, its
     /// floor and unbounded quadrics first (`occluded_1`'s order; without, the caller
     /// has tested them), then the walks of the lanes left, one after another. (Unlike
-    /// the closest-hit walks, stepping them in turn does not pay: an any-hit walk
-    /// visits its farthest child first and most end early; benches/README.md.)
+    /// the closest-hit walks': stepped in turn, they ran 0.77× as fast on torus100k and
+    /// 1.03× on torus1m; an any-hit walk visits its farthest child first and most end
+    /// early, benches/README.md.)
     #[inline(always)]
     pub(crate) fn occluded_lanes_of<T: TriangleKernel, const H: usize>(
         &self,

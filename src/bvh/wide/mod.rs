@@ -12,8 +12,8 @@
 //! binary walks report.
 //!
 //! Contract (as `bvh/mod.rs`): hit iff 0 < t < t_max, NaN never hits (a ray with a
-//! non-finite origin or 1/d skips the tree; one with an infinite direction walks it and
-//! meets nothing, `tests/wide_bvh.rs`), exact ties as `PrimSet::record_1`,
+//! non-finite origin, direction or 1/d skips the tree, where it would meet nothing,
+//! `tests/wide_bvh.rs`), exact ties as `PrimSet::record_1`,
 //! the unbounded quadrics and the floor after the tree. Step counters: `boxes` counts
 //! wide node tests, `prims` the primitives of the leaves reached (real triangles, not
 //! padding lanes), `quadrics` the quadric tests.
@@ -245,14 +245,14 @@ impl WideBvh {
         }
         node.get((keys[n - 1] & 0xff) as usize)
     }
-}
 
-impl WideBvh {
     /// Pushes a node's hit children `bits` for an any-hit walk: the interior child met
     /// farthest away (entry distance `near`) after the other interior children, to be
-    /// visited first of them, and with `leaves_last` the leaves after every interior
-    /// child (tested first); no sort, one pass over the slots. A shadow ray leaves a surface: the subtrees around its origin
-    /// hold that surface, which it has left, and a blocker lies farther on (figures in
+    /// visited first of them; the leaves with `leaves_last` after every interior child
+    /// (tested first: the single-ray walks), else as met among the interior ones (the
+    /// frustum walks, which measured the same either way). No sort, one pass over the
+    /// slots. A shadow ray leaves a surface: the subtrees around its origin hold that
+    /// surface, which it has left, and a blocker lies farther on (figures in
     /// benches/README.md: the order changes no answer, only how soon a walk ends).
     #[inline(always)]
     pub(super) fn push_any_hit(

@@ -133,10 +133,11 @@ fn live_walks(rays: &[Ray1]) -> u32 {
 
 /// Whether the ray enters the tree: a NaN or infinite origin or direction never hits
 /// a bounded primitive (their kernels give NaN), and would make the slab test NaN,
-/// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included.
+/// which `fast_min`/`fast_max` may turn into a hit of every slot, empty ones included
+/// (a direction infinite on every axis has a finite 1/d, of zeros).
 #[inline]
 fn finite(r: &Ray1) -> bool {
-    r.origin.is_finite() && r.inv_dir.is_finite()
+    r.origin.is_finite() && r.dir.is_finite() && r.inv_dir.is_finite()
 }
 
 impl Bvh {

@@ -9,8 +9,8 @@
 //! the floor and the unbounded quadrics, and packets just too spread for one frustum
 //! go through the 8-lane code, half by half; packets of mixed direction signs or
 //! scattered far past the frustum's limit take all sixteen lanes' single-ray walks
-//! (closest hit: stepped in turn). A lane gets what the 8-lane walks give it, bit for bit: the kernels are the
-//! same generic code (`tests/lanes.rs`).
+//! (closest hit: stepped in turn). A lane gets what the 8-lane walks give it, bit for
+//! bit: the kernels are the same generic code (`tests/lanes.rs`).
 
 use super::TriBlock;
 use super::walk_x8::{Frustum, WidePacket, finite_lanes, shared_octant};

@@ -50,7 +50,8 @@ use crate::simd::packet::{all_same, dot3, max_in, min_in};
 pub const FRUSTUM_SPREAD: f32 = 0.015;
 
 /// Spread (as [`FRUSTUM_SPREAD`]) past which a packet's lanes take their own single-ray
-/// walks of the wide tree, stepped in turn, instead of the binary packet walk: lanes
+/// walks of the wide tree (closest hit: stepped in turn; any hit: one after another)
+/// instead of the binary packet walk: lanes
 /// that far apart share few nodes (random shadow rays of one light), while packets just
 /// past the frustum limit (a silhouette, a curved mirror) still share most of their
 /// paths (figures: benches/README.md).
@@ -200,14 +201,18 @@ fn by_sign(d: f32x8, neg: f32x8, pos: f32x8) -> f32x8 {
     <f32x8 as simd::Lanes>::select_by_sign(d, neg, pos)
 }
 
-/// Lanes whose origin and 1/d are finite (the others never hit a bounded primitive and
-/// would make the slab tests NaN).
+/// Lanes whose origin, direction and 1/d are finite (the others never hit a bounded
+/// primitive and would make the slab tests NaN: a direction infinite on every axis has
+/// a finite 1/d of zeros, and (±∞ − o)·0 of an empty slot is NaN).
 #[inline(always)]
 pub(crate) fn finite_lanes(r: &RayPacket8) -> Mask8 {
     let fin = |v: f32x8| (v * f32x8::ZERO).eq8(f32x8::ZERO); // ±∞ · 0 and NaN · 0: NaN
     fin(r.origin.x)
         & fin(r.origin.y)
         & fin(r.origin.z)
+        & fin(r.dir.x)
+        & fin(r.dir.y)
+        & fin(r.dir.z)
         & fin(r.inv_dir.x)
         & fin(r.inv_dir.y)
         & fin(r.inv_dir.z)
@@ -248,8 +253,8 @@ fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
 
 /// The lanes of `act` that meet slot `s` of `node` with 0 <= t <= t_max, by the
 /// binary walk's slab test of that box (`BvhNode::intersect_lanes`, the slot's box is
-/// that node's, bit for bit) with the entry planes of the direction signs `OCT` (the
-/// same values: see `BvhNode::intersect_x8_oct`).
+/// that node's, bit for bit) with the entry planes of the direction signs `OCT`, which
+/// every lane of `act` must have (the same values: see `BvhNode::intersect_x8_oct`).
 #[inline(always)]
 fn slot_lanes<L: simd::Lanes, const OCT: u32>(
     node: &super::WideNode,
@@ -666,11 +671,12 @@ impl Bvh {
         act.and_not(left)
     }
 
-    /// Of the slots `bits` of `node` (those the frustum meets), all the interior ones
-    /// and the leaves that some lane of `act` meets by its own slab test (the binary
-    /// walk's test of the slot's box, [`slot_lanes`]): a lane that misses the slot's box
-    /// misses every binary leaf box in it, so its walk would never test those
-    /// triangles. The frustum of origins spread over a surface (shadow rays) meets
+    /// Of the slots `bits` of `node` (those the frustum meets), all but the triangle
+    /// leaves that no lane of `act` meets by its own slab test (the binary walk's test
+    /// of the slot's box, [`slot_lanes`]): a lane that misses the slot's box misses
+    /// every binary leaf box in it, and a triangle's hit counts only for lanes that pass
+    /// its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
+    /// so their leaves are kept.) The frustum of origins spread over a surface (shadow rays) meets
     /// many small leaves between the lanes that no lane meets.
     #[inline(always)]
     fn entered_leaves<P: WidePacket, const OCT: u32>(
@@ -687,7 +693,7 @@ impl Bvh {
         while scan != 0 {
             let s = scan.trailing_zeros() as usize;
             scan &= scan - 1;
-            if !node.slot[s].is_interior()
+            if node.slot[s].holds(PrimKind::Triangle)
                 && slot_lanes::<P::L, OCT>(node, s, o, inv, act, t_max).none()
             {
                 keep &= !(1 << s);
