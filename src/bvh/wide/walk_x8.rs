@@ -702,3 +702,115 @@ impl Bvh {
         keep
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::test_rng::Xorshift;
+    use glam::Vec3;
+
+    /// A coordinate for the tests: often a box face itself or a zero of either sign.
+    fn pick(rng: &mut Xorshift, faces: [f32; 2]) -> f32 {
+        match rng.next_u64() % 6 {
+            0 => faces[0],
+            1 => faces[1],
+            2 => 0.0,
+            3 => -0.0,
+            _ => rng.f32() * 4.0 - 2.0,
+        }
+    }
+
+    /// Boxes (slot 3 of a node; flat ones too) against packets whose lanes all have
+    /// the direction signs `OCT` (a zero component of either sign among them, origins
+    /// on the faces, rays aimed at corners), random active lanes and t_max: [`slot_lanes`] gives each lane
+    /// what the binary walk's test of that box gives it.
+    fn slot_lanes_are_the_binary_test<const OCT: u32>(rng: &mut Xorshift) -> usize {
+        let mut met = 0;
+        for _ in 0..400 {
+            let lo = Vec3::from_array(std::array::from_fn(|_| rng.f32() * 2.0 - 1.0));
+            let size = Vec3::from_array(std::array::from_fn(|_| {
+                if rng.next_u64() % 5 == 0 {
+                    0.0
+                } else {
+                    rng.f32()
+                }
+            }));
+            let hi = lo + size;
+            let mut node = super::super::WideNode::empty();
+            let s = 3;
+            for a in 0..3 {
+                let mut l = node.bounds[2 * a].to_array();
+                let mut h = node.bounds[2 * a + 1].to_array();
+                (l[s], h[s]) = (lo[a], hi[a]);
+                (node.bounds[2 * a], node.bounds[2 * a + 1]) = (f32x8::new(l), f32x8::new(h));
+            }
+            let lane = |rng: &mut Xorshift| {
+                let o = Vec3::from_array(std::array::from_fn(|a| pick(rng, [lo[a], hi[a]])));
+                let d = Vec3::from_array(std::array::from_fn(|a| {
+                    let m = if rng.next_u64() % 4 == 0 {
+                        0.0
+                    } else {
+                        rng.f32() + 1e-3
+                    };
+                    if OCT >> a & 1 == 1 { -m } else { m }
+                }));
+                if rng.next_u64() % 2 == 0 {
+                    // aimed at a corner: entry and exit meet there, up to rounding
+                    let c = Vec3::from_array(std::array::from_fn(|a| {
+                        if rng.next_u64() % 2 == 0 {
+                            lo[a]
+                        } else {
+                            hi[a]
+                        }
+                    }));
+                    return (c - d * (rng.f32() * 3.0), d);
+                }
+                (o, d)
+            };
+            let rays: [(Vec3, Vec3); 8] = std::array::from_fn(|_| lane(rng));
+            let p = RayPacket8::new(
+                Vec3x8::from_lanes(&rays.map(|r| r.0)),
+                Vec3x8::from_lanes(&rays.map(|r| r.1)),
+                Mask8::ALL,
+            );
+            assert_eq!(shared_octant(&p, Mask8::ALL), Some(OCT));
+            let act = Mask8::from_bits((rng.next_u64() as u32 & 0xff) | 1);
+            let t_max = f32x8::new(std::array::from_fn(|_| {
+                if rng.next_u64() % 3 == 0 {
+                    f32::INFINITY
+                } else {
+                    rng.f32() * 3.0
+                }
+            }));
+            let [o, _, inv] = p.rays();
+            let got = slot_lanes::<f32x8, OCT>(&node, s, o, inv, act, t_max);
+            let binary = BvhNode {
+                lo: lo.to_array(),
+                first: 0,
+                hi: hi.to_array(),
+                slot: crate::bvh::slot::Slot::INTERIOR,
+            };
+            let want = binary.intersect_lanes(o, inv, act, t_max).0;
+            assert_eq!(got.bits(), want.bits(), "box {lo} {hi}, rays {rays:?}");
+            met += got.bits().count_ones() as usize;
+        }
+        met
+    }
+
+    #[test]
+    fn a_slots_lane_test_is_the_binary_walks_test_of_its_box() {
+        let mut rng = Xorshift(0x5eed_1e55);
+        let met = [
+            slot_lanes_are_the_binary_test::<0>(&mut rng),
+            slot_lanes_are_the_binary_test::<1>(&mut rng),
+            slot_lanes_are_the_binary_test::<2>(&mut rng),
+            slot_lanes_are_the_binary_test::<3>(&mut rng),
+            slot_lanes_are_the_binary_test::<4>(&mut rng),
+            slot_lanes_are_the_binary_test::<5>(&mut rng),
+            slot_lanes_are_the_binary_test::<6>(&mut rng),
+            slot_lanes_are_the_binary_test::<7>(&mut rng),
+        ];
+        // both answers occur in every octant
+        assert!(met.iter().all(|&m| m > 100 && m < 400 * 8 - 100), "{met:?}");
+    }
+}
