@@ -729,7 +729,7 @@ mod tests {
         for _ in 0..400 {
             let lo = Vec3::from_array(std::array::from_fn(|_| rng.f32() * 2.0 - 1.0));
             let size = Vec3::from_array(std::array::from_fn(|_| {
-                if rng.next_u64() % 5 == 0 {
+                if rng.next_u64().is_multiple_of(5) {
                     0.0
                 } else {
                     rng.f32()
@@ -747,17 +747,17 @@ mod tests {
             let lane = |rng: &mut Xorshift| {
                 let o = Vec3::from_array(std::array::from_fn(|a| pick(rng, [lo[a], hi[a]])));
                 let d = Vec3::from_array(std::array::from_fn(|a| {
-                    let m = if rng.next_u64() % 4 == 0 {
+                    let m = if rng.next_u64().is_multiple_of(4) {
                         0.0
                     } else {
                         rng.f32() + 1e-3
                     };
                     if OCT >> a & 1 == 1 { -m } else { m }
                 }));
-                if rng.next_u64() % 2 == 0 {
+                if rng.next_u64().is_multiple_of(2) {
                     // aimed at a corner: entry and exit meet there, up to rounding
                     let c = Vec3::from_array(std::array::from_fn(|a| {
-                        if rng.next_u64() % 2 == 0 {
+                        if rng.next_u64().is_multiple_of(2) {
                             lo[a]
                         } else {
                             hi[a]
@@ -776,7 +776,7 @@ mod tests {
             assert_eq!(shared_octant(&p, Mask8::ALL), Some(OCT));
             let act = Mask8::from_bits((rng.next_u64() as u32 & 0xff) | 1);
             let t_max = f32x8::new(std::array::from_fn(|_| {
-                if rng.next_u64() % 3 == 0 {
+                if rng.next_u64().is_multiple_of(3) {
                     f32::INFINITY
                 } else {
                     rng.f32() * 3.0
