@@ -51,10 +51,9 @@ pub const FRUSTUM_SPREAD: f32 = 0.015;
 
 /// Spread (as [`FRUSTUM_SPREAD`]) past which a packet's lanes take their own single-ray
 /// walks of the wide tree (closest hit: stepped in turn; any hit: one after another)
-/// instead of the binary packet walk: lanes
-/// that far apart share few nodes (random shadow rays of one light), while packets just
-/// past the frustum limit (a silhouette, a curved mirror) still share most of their
-/// paths (figures: benches/README.md).
+/// instead of the binary packet walk: lanes that far apart share few nodes (random
+/// shadow rays of one light), while packets just past the frustum limit (a silhouette,
+/// a curved mirror) still share most of their paths (figures: benches/README.md).
 pub const LANES_SPREAD: f32 = 16.0 * FRUSTUM_SPREAD;
 
 /// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`):
@@ -282,8 +281,8 @@ fn slot_lanes<L: simd::Lanes, const OCT: u32>(
 pub(crate) trait WidePacket {
     type L: simd::Lanes;
     type Hit;
-    /// Whether the any-hit walk tests each leaf the frustum meets against every lane
-    /// before it is pushed ([`Bvh::entered_leaves`]): it pays at sixteen lanes, whose
+    /// Whether the any-hit walk tests each triangle leaf the frustum meets against
+    /// every lane before it is pushed ([`Bvh::entered_leaves`]): it pays at sixteen lanes, whose
     /// frustum spans twice the origins of eight (benches/README.md).
     const LEAVES_PER_LANE: bool;
     /// Origins, unit directions and 1/d of the lanes.
@@ -676,8 +675,8 @@ impl Bvh {
     /// of the slot's box, [`slot_lanes`]): a lane that misses the slot's box misses
     /// every binary leaf box in it, and a triangle's hit counts only for lanes that pass
     /// its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
-    /// so their leaves are kept.) The frustum of origins spread over a surface (shadow rays) meets
-    /// many small leaves between the lanes that no lane meets.
+    /// so their leaves are kept.) The frustum of origins spread over a surface (shadow
+    /// rays) meets many small leaves between the lanes that no lane meets.
     #[inline(always)]
     fn entered_leaves<P: WidePacket, const OCT: u32>(
         &self,
