@@ -721,8 +721,8 @@ mod tests {
 
     /// Boxes (slot 3 of a node; flat ones too) against packets whose lanes all have
     /// the direction signs `OCT` (a zero component of either sign among them, origins
-    /// on the faces, rays aimed at corners), random active lanes and t_max: [`slot_lanes`] gives each lane
-    /// what the binary walk's test of that box gives it.
+    /// on the faces, rays aimed at corners), random active lanes and t_max:
+    /// [`slot_lanes`] gives each lane what the binary walk's test of that box gives it.
     fn slot_lanes_are_the_binary_test<const OCT: u32>(rng: &mut Xorshift) -> usize {
         let mut met = 0;
         for _ in 0..400 {
