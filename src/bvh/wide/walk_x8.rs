@@ -9,7 +9,7 @@
 //! are visited nearest first, and a popped subtree is skipped when that bound lies
 //! behind every active lane's nearest hit. Nothing is decided per lane above the
 //! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
-//! own slab test meets its box ([`Bvh::entered_leaves`]). In a leaf, the frustum test
+//! own slab test meets its box ([`entered_leaves`]). In a leaf, the frustum test
 //! of a triangle block's per-lane binary leaf boxes picks the triangles to test (all of
 //! them in a block of one binary leaf, whose box the frustum has passed); each is
 //! tested against the whole packet with the packet kernel
@@ -237,11 +237,12 @@ pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
     Some(oct)
 }
 
-/// The binary leaf box of triangle `j` of a block, as a binary node (its packet slab
-/// test is the one the binary packet walk runs on that leaf).
+/// Lane `j` of eight boxes in the layout of `WideNode::bounds` (a node's slot `j`, or
+/// the binary leaf box of a block's triangle `j`) as a binary node: its packet slab
+/// test is the one the binary packet walk runs on that box, bit for bit.
 #[inline(always)]
-fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
-    let c = |k: usize| b.bounds[k].as_array()[j];
+fn lane_box(bounds: &[f32x8; 6], j: usize) -> BvhNode {
+    let c = |k: usize| bounds[k].as_array()[j];
     BvhNode {
         lo: [c(0), c(2), c(4)],
         first: 0,
@@ -250,29 +251,37 @@ fn block_leaf_box(b: &TriBlock, j: usize) -> BvhNode {
     }
 }
 
-/// The lanes of `act` that meet slot `s` of `node` with 0 <= t <= t_max, by the
-/// binary walk's slab test of that box (`BvhNode::intersect_lanes`, the slot's box is
-/// that node's, bit for bit) with the entry planes of the direction signs `OCT`, which
-/// every lane of `act` must have (the same values: see `BvhNode::intersect_x8_oct`).
+/// Of the slots `bits` of `node` (those the frustum meets), all but the triangle
+/// leaves that no lane of `act` meets by its own slab test (the binary walk's test
+/// of the slot's box, [`lane_box`]): a lane that misses the slot's box misses
+/// every binary leaf box in it, and a triangle's hit counts only for lanes that pass
+/// its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
+/// so their leaves are kept.) The frustum of origins spread over a surface (shadow
+/// rays) meets many small leaves between the lanes that no lane meets.
 #[inline(always)]
-fn slot_lanes<L: simd::Lanes, const OCT: u32>(
+fn entered_leaves<P: WidePacket>(
+    r: &P,
     node: &super::WideNode,
-    s: usize,
-    o: [L; 3],
-    inv: [L; 3],
-    act: L::Mask,
-    t_max: L,
-) -> L::Mask {
-    let near = |a: usize| 2 * a + (OCT >> a & 1) as usize;
-    let t = |k: usize, a: usize| (L::splat(node.bounds[k].as_array()[s]) - o[a]) * inv[a];
-    let entry = t(near(0), 0)
-        .fast_max(t(near(1), 1))
-        .fast_max(t(near(2), 2).fast_max(L::zero()));
-    let exit = t(near(0) ^ 1, 0)
-        .fast_min(t(near(1) ^ 1, 1))
-        .fast_min(t(near(2) ^ 1, 2).fast_min(t_max))
-        * L::splat(FAR_WIDEN);
-    act & entry.le(exit)
+    bits: u32,
+    act: Mask<P>,
+    t_max: P::L,
+) -> u32 {
+    use simd::LaneMask as _;
+    let [o, _, inv] = r.rays();
+    let (mut keep, mut scan) = (bits, bits);
+    while scan != 0 {
+        let s = scan.trailing_zeros() as usize;
+        scan &= scan - 1;
+        if node.slot[s].holds(PrimKind::Triangle)
+            && lane_box(&node.bounds, s)
+                .intersect_lanes(o, inv, act, t_max)
+                .0
+                .none()
+        {
+            keep &= !(1 << s);
+        }
+    }
+    keep
 }
 
 /// A packet the frustum walks trace: eight lanes ([`RayPacket8`]) or sixteen
@@ -282,8 +291,8 @@ pub(crate) trait WidePacket {
     type L: simd::Lanes;
     type Hit;
     /// Whether the any-hit walk tests each triangle leaf the frustum meets against
-    /// every lane before it is pushed ([`Bvh::entered_leaves`]): it pays at sixteen lanes, whose
-    /// frustum spans twice the origins of eight (benches/README.md).
+    /// every lane before it is pushed ([`entered_leaves`]): it pays at sixteen lanes,
+    /// whose frustum spans twice the origins of eight (benches/README.md).
     const LEAVES_PER_LANE: bool;
     /// Origins, unit directions and 1/d of the lanes.
     fn rays(&self) -> [[Self::L; 3]; 3];
@@ -556,7 +565,7 @@ impl Bvh {
                 // only lanes that pass the triangle's binary leaf box (module doc); the
                 // rays fetched here, where a lane hit (most candidates hit none)
                 let [o, _, inv] = r.rays();
-                let m = block_leaf_box(b, j)
+                let m = lane_box(&b.bounds, j)
                     .intersect_lanes(o, inv, m, P::hit_t(hit))
                     .0;
                 if m.none() {
@@ -633,7 +642,7 @@ impl Bvh {
                 steps.boxes += 1;
                 let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
                 if P::LEAVES_PER_LANE {
-                    bits = self.entered_leaves::<P, OCT>(r, node, bits, left, t_max);
+                    bits = entered_leaves(r, node, bits, left, t_max);
                 }
                 w.prefetch_children(node, bits, true);
                 WideBvh::push_any_hit(node, near, bits, false, &mut stack);
@@ -657,7 +666,8 @@ impl Bvh {
                         let m = m & t.lt(t_max);
                         if m.any() {
                             let [o, _, inv] = r.rays();
-                            let blocked = block_leaf_box(b, j).intersect_lanes(o, inv, m, t_max).0;
+                            let blocked =
+                                lane_box(&b.bounds, j).intersect_lanes(o, inv, m, t_max).0;
                             left = left.and_not(blocked);
                         }
                     }
@@ -668,37 +678,6 @@ impl Bvh {
             }
         }
         act.and_not(left)
-    }
-
-    /// Of the slots `bits` of `node` (those the frustum meets), all but the triangle
-    /// leaves that no lane of `act` meets by its own slab test (the binary walk's test
-    /// of the slot's box, [`slot_lanes`]): a lane that misses the slot's box misses
-    /// every binary leaf box in it, and a triangle's hit counts only for lanes that pass
-    /// its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
-    /// so their leaves are kept.) The frustum of origins spread over a surface (shadow
-    /// rays) meets many small leaves between the lanes that no lane meets.
-    #[inline(always)]
-    fn entered_leaves<P: WidePacket, const OCT: u32>(
-        &self,
-        r: &P,
-        node: &super::WideNode,
-        bits: u32,
-        act: Mask<P>,
-        t_max: P::L,
-    ) -> u32 {
-        use simd::LaneMask as _;
-        let [o, _, inv] = r.rays();
-        let (mut keep, mut scan) = (bits, bits);
-        while scan != 0 {
-            let s = scan.trailing_zeros() as usize;
-            scan &= scan - 1;
-            if node.slot[s].holds(PrimKind::Triangle)
-                && slot_lanes::<P::L, OCT>(node, s, o, inv, act, t_max).none()
-            {
-                keep &= !(1 << s);
-            }
-        }
-        keep
     }
 }
 
@@ -722,8 +701,9 @@ mod tests {
     /// Boxes (slot 3 of a node; flat ones too) against packets whose lanes all have
     /// the direction signs `OCT` (a zero component of either sign among them, origins
     /// on the faces, rays aimed at corners), random active lanes and t_max:
-    /// [`slot_lanes`] gives each lane what the binary walk's test of that box gives it.
-    fn slot_lanes_are_the_binary_test<const OCT: u32>(rng: &mut Xorshift) -> usize {
+    /// the slot's box read back (`lane_box`) gives each lane what the binary walk's
+    /// test of that box gives it.
+    fn slot_box_test_is_the_binary_test<const OCT: u32>(rng: &mut Xorshift) -> usize {
         let mut met = 0;
         for _ in 0..400 {
             let lo = Vec3::from_array(std::array::from_fn(|_| rng.f32() * 2.0 - 1.0));
@@ -782,7 +762,9 @@ mod tests {
                 }
             }));
             let [o, _, inv] = p.rays();
-            let got = slot_lanes::<f32x8, OCT>(&node, s, o, inv, act, t_max);
+            let got = lane_box(&node.bounds, s)
+                .intersect_lanes(o, inv, act, t_max)
+                .0;
             let binary = BvhNode {
                 lo: lo.to_array(),
                 first: 0,
@@ -800,14 +782,14 @@ mod tests {
     fn a_slots_lane_test_is_the_binary_walks_test_of_its_box() {
         let mut rng = Xorshift(0x5eed_1e55);
         let met = [
-            slot_lanes_are_the_binary_test::<0>(&mut rng),
-            slot_lanes_are_the_binary_test::<1>(&mut rng),
-            slot_lanes_are_the_binary_test::<2>(&mut rng),
-            slot_lanes_are_the_binary_test::<3>(&mut rng),
-            slot_lanes_are_the_binary_test::<4>(&mut rng),
-            slot_lanes_are_the_binary_test::<5>(&mut rng),
-            slot_lanes_are_the_binary_test::<6>(&mut rng),
-            slot_lanes_are_the_binary_test::<7>(&mut rng),
+            slot_box_test_is_the_binary_test::<0>(&mut rng),
+            slot_box_test_is_the_binary_test::<1>(&mut rng),
+            slot_box_test_is_the_binary_test::<2>(&mut rng),
+            slot_box_test_is_the_binary_test::<3>(&mut rng),
+            slot_box_test_is_the_binary_test::<4>(&mut rng),
+            slot_box_test_is_the_binary_test::<5>(&mut rng),
+            slot_box_test_is_the_binary_test::<6>(&mut rng),
+            slot_box_test_is_the_binary_test::<7>(&mut rng),
         ];
         // both answers occur in every octant
         assert!(met.iter().all(|&m| m > 100 && m < 400 * 8 - 100), "{met:?}");
