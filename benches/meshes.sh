@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The mesh figures against Embree in interleaved rounds: per round and mesh, the Embree harness
-# (benches/embree, modes 1/8/16, closest hit and shadow rays) then octaray bench-trace on the
+# (benches/embree, modes 1/8/16 and the stream 1M, closest hit and shadow rays) then octaray
+# bench-trace (modes 1/8/16, the binary 1b/8b and the stream 1s) on the
 # same work, 1 thread; prints every line, then the median Mrays/s of each cell over the rounds
 # and octaray's best mode over Embree's best mode. Usage, from the repository root:
 #   benches/meshes.sh [ROUNDS] [/tmp/embree-peer]
@@ -18,7 +19,7 @@ for i in $(seq "$rounds"); do
   for mesh in torus100k torus1m; do
     for rays in primary incoherent; do
       for q in "" shadow; do
-        for mode in 1 8 16; do
+        for mode in 1 8 16 1M; do
           (cd "$peer" && "$e" "data/$mesh.mesh" "data/$rays.rays" 1 $mode 5 $q) | tee -a "$log"
         done
       done

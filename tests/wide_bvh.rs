@@ -1021,3 +1021,74 @@ fn origins_differing_in_a_zeros_sign_keep_each_lanes_bits() {
         }
     }
 }
+
+/// Each ray of `rays` as one stream (`Bvh::intersect_stream`/`occluded_stream`) gets
+/// what the single-ray queries give it, bit for bit, with the same node and primitive
+/// tests in all; `t_max` per ray for the shadow queries.
+fn stream_as_single_queries(bvh: &Bvh, rays: &[Ray1], t_max: &[f32]) -> usize {
+    let (mut ss, mut s1) = (Steps::default(), Steps::default());
+    let mut hits = vec![Hit1::new(f32::INFINITY); rays.len()];
+    bvh.intersect_stream::<Watertight>(rays, &mut hits, &mut ss);
+    let mut blocked = vec![false; rays.len()];
+    bvh.occluded_stream::<Watertight>(rays, t_max, &mut blocked, &mut ss);
+    let mut n_hits = 0;
+    for ((r, h), (&tm, &b)) in rays.iter().zip(&hits).zip(t_max.iter().zip(&blocked)) {
+        let mut one = Hit1::new(f32::INFINITY);
+        bvh.intersect_1::<Watertight>(r, &mut one, &mut s1);
+        assert_eq!(
+            (one.t.to_bits(), one.prim, one.u.to_bits(), one.v.to_bits()),
+            (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()),
+            "ray {r:?}"
+        );
+        assert_eq!(
+            bvh.occluded_1::<Watertight>(r, tm, &mut s1),
+            b,
+            "ray {r:?}, t_max {tm}"
+        );
+        n_hits += h.is_hit() as usize;
+    }
+    assert_eq!(ss, s1, "the streams make the single queries' tests");
+    n_hits
+}
+
+#[test]
+fn streams_give_every_ray_what_single_queries_give_it() {
+    let tris = torus(96, 48);
+    let big = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let mixed = Bvh::build(PrimSet::from_scene(
+        &mixed_scene(),
+        DVec3::new(0.0, 0.0, 20.0),
+    ));
+    let mut rng = Rng(31);
+    for (bvh, lo, hi) in [
+        (&big, Vec3::new(-2.0, -1.5, -2.0), Vec3::new(2.0, 1.5, 2.0)),
+        (
+            &mixed,
+            Vec3::new(-100.0, -100.0, -20.0),
+            Vec3::new(80.0, 80.0, 50.0),
+        ),
+    ] {
+        let mut rays = rays_of(&incoherent_rays(3_000, 5));
+        rays.extend(edge_rays(&bvh.prims.triangles, 2_000, lo, hi, &mut rng));
+        rays.extend(signed_zero_rays(lo, hi, 10));
+        // rays that never enter the tree, here and there in the stream
+        for k in [0, 17, 500, 3_001] {
+            rays.insert(k, Ray1::new(Vec3::new(f32::NAN, 0.0, 1.0), Vec3::NEG_Z));
+        }
+        rays.push(Ray1::new(Vec3::ZERO, Vec3::splat(f32::INFINITY)));
+        // shadow distances: none (0), short, long, unbounded
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|k| match k % 5 {
+                0 => 0.0,
+                1 => f32::INFINITY,
+                _ => rng.f64() as f32 * 3.0,
+            })
+            .collect();
+        let hits = stream_as_single_queries(bvh, &rays, &t_max);
+        assert!(hits > rays.len() / 4, "{hits} of {}", rays.len());
+        // streams shorter than the walks in flight, and empty
+        for n in [0, 1, 5, 16, 17] {
+            stream_as_single_queries(bvh, &rays[1..1 + n], &t_max[1..1 + n]);
+        }
+    }
+}

@@ -147,6 +147,22 @@ int main(int argc, char** argv) {
     SHADOW_PACKET(4, RTCRay4)
     SHADOW_PACKET(8, RTCRay8)
     SHADOW_PACKET(16, RTCRay16)
+#if defined(E3)
+    else if (shadow && mode == "1M") {
+      // the stream of the range's shadow rays (those with one), rtcOccluded1M
+      std::vector<RTCRay> ray; std::vector<size_t> at;
+      for (size_t i = b; i < e; i++) {
+        blocked[i] = 0;
+        if (!(tmax[i] > 0)) continue;
+        RTCRay x; const float* r = &R[i * 6];
+        x.org_x = r[0]; x.org_y = r[1]; x.org_z = r[2]; x.dir_x = r[3]; x.dir_y = r[4]; x.dir_z = r[5];
+        x.tnear = 0; x.tfar = tmax[i]; x.mask = ~0u; x.flags = 0; x.time = 0;
+        ray.push_back(x); at.push_back(i);
+      }
+      rtcOccluded1M(s, &ctx, ray.data(), unsigned(ray.size()), sizeof(RTCRay));
+      for (size_t k = 0; k < ray.size(); k++) blocked[at[k]] = ray[k].tfar < 0;
+    }
+#endif
     else if (shadow) { fprintf(stderr, "bad shadow mode\n"); exit(1); }
     else if (mode == "1") {
       for (size_t i = b; i < e; i++) {

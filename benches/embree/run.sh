@@ -24,7 +24,7 @@ for mesh in torus100k torus1m; do
   for rays in primary incoherent; do
     for q in "" shadow; do
       [ -z "${ONLY_SHADOW:-}" ] || [ -n "$q" ] || continue
-      for mode in 1 8 16; do "$bin" data/$mesh.mesh data/$rays.rays "${THREADS:-1}" $mode 5 $q; done
+      for mode in 1 8 16 1M; do "$bin" data/$mesh.mesh data/$rays.rays "${THREADS:-1}" $mode 5 $q; done
     done
   done
 done

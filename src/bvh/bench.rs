@@ -254,6 +254,10 @@ pub enum Mode {
     Single,
     /// `Bvh::intersect_1_binary`, one ray at a time through the binary tree (`mode=1b`).
     SingleBinary,
+    /// `Bvh::intersect_stream`, each work item's rays as one stream of single rays
+    /// (`mode=1s`: sixteen walks of the 8-wide tree in flight; Embree's analogue is
+    /// `rtcIntersect1M`, the harness's `mode=1M`).
+    Stream,
     /// `Bvh::intersect_x8`, 8 consecutive rays as one packet (the 8-wide tree: as a
     /// frustum when the lanes share their direction signs and lie close, lane by lane
     /// when scattered, `Bvh::intersect_x8` explains which).
@@ -268,17 +272,19 @@ pub enum Mode {
 impl Mode {
     pub fn width(self) -> usize {
         match self {
-            Mode::Single | Mode::SingleBinary => 1,
+            Mode::Single | Mode::SingleBinary | Mode::Stream => 1,
             Mode::Packet8 | Mode::Packet8Binary => 8,
             Mode::Packet16(_) => 16,
         }
     }
 
-    /// The `mode=` field: the width, `1b` for the binary single-ray path.
+    /// The `mode=` field: the width, `1b` for the binary single-ray path, `1s` for
+    /// streams.
     pub fn label(self) -> &'static str {
         match self {
             Mode::Single => "1",
             Mode::SingleBinary => "1b",
+            Mode::Stream => "1s",
             Mode::Packet8 => "8",
             Mode::Packet8Binary => "8b",
             Mode::Packet16(_) => "16",
@@ -342,6 +348,16 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
         let mut steps = Steps::default();
         let base = c * CHUNK;
         match mode {
+            Mode::Stream => {
+                let rs: Vec<Ray1> = (base..base + out.len())
+                    .map(|i| Ray1::new(rays.origin[i], rays.dir[i]))
+                    .collect();
+                let mut hs = vec![Hit1::new(f32::INFINITY); rs.len()];
+                bvh.intersect_stream::<Watertight>(&rs, &mut hs, &mut steps);
+                for (t, h) in out.iter_mut().zip(&hs) {
+                    *t = if h.is_hit() { h.t } else { -1.0 };
+                }
+            }
             Mode::Single | Mode::SingleBinary => {
                 for (i, t) in out.iter_mut().enumerate() {
                     let r = Ray1::new(rays.origin[base + i], rays.dir[base + i]);
@@ -432,6 +448,22 @@ pub fn trace_occluded(bvh: &Bvh, set: &ShadowRays, mode: Mode, out: &mut [u8]) -
         let mut steps = Steps::default();
         let base = c * CHUNK;
         match mode {
+            Mode::Stream => {
+                // the rays without a shadow ray (t_max 0) are not traced
+                let idx: Vec<usize> = (base..base + out.len())
+                    .filter(|&i| set.t_max[i] > 0.0)
+                    .collect();
+                let rs: Vec<Ray1> = (idx.iter())
+                    .map(|&i| Ray1::new(rays.origin[i], rays.dir[i]))
+                    .collect();
+                let tm: Vec<f32> = idx.iter().map(|&i| set.t_max[i]).collect();
+                let mut bl = vec![false; rs.len()];
+                bvh.occluded_stream::<Watertight>(&rs, &tm, &mut bl, &mut steps);
+                out.fill(0);
+                for (&i, &b) in idx.iter().zip(&bl) {
+                    out[i - base] = b as u8;
+                }
+            }
             Mode::Single | Mode::SingleBinary => {
                 for (i, blocked) in out.iter_mut().enumerate() {
                     let t_max = set.t_max[base + i];
@@ -846,6 +878,7 @@ pub fn run(
                 Mode::Packet8,
                 Mode::Packet8Binary,
                 Mode::Single,
+                Mode::Stream,
                 Mode::SingleBinary,
             ])
             .collect::<Vec<_>>();
@@ -881,7 +914,7 @@ pub fn run(
                 mode.label(),
                 run.boxes_per_ray,
                 match mode {
-                    Mode::Single => "wide node tests (8 boxes each)",
+                    Mode::Single | Mode::Stream => "wide node tests (8 boxes each)",
                     Mode::Packet8 | Mode::Packet16(_) =>
                         "node tests (8-wide: per packet when the signs agree, per lane when not)",
                     _ => "box tests",

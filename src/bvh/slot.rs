@@ -122,6 +122,12 @@ impl<T: Copy, const N: usize> Stack<T, N> {
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
+
+    /// Drops every entry.
+    #[inline(always)]
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
 }
 
 impl<T: Copy, const N: usize> Default for Stack<T, N> {

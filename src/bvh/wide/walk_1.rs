@@ -221,6 +221,156 @@ impl Bvh {
         });
     }
 
+    /// Nearest hit of each ray of a stream: `hits[i]` gets what [`Bvh::intersect_1`]
+    /// gives `rays[i]`. Sixteen walks of the wide tree are in flight, stepped in turn one
+    /// node or leaf each, and a walk that ends hands its slot to the next ray, so that
+    /// sixteen rays' fetches overlap from the stream's first ray to its last (a packet's
+    /// stepped lanes end one by one, the last alone). For rays that share little
+    /// (`benches/README.md`: incoherent rays, `mode=1s`).
+    pub fn intersect_stream<T: TriangleKernel>(
+        &self,
+        rays: &[Ray1],
+        hits: &mut [Hit1],
+        steps: &mut Steps,
+    ) {
+        assert_eq!(rays.len(), hits.len(), "a hit per ray");
+        if !self.wide.nodes.is_empty() {
+            with_stacks16(|s| self.stream_with::<T, 16>(rays, hits, steps, s));
+        }
+        for (r, h) in rays.iter().zip(hits.iter_mut()) {
+            self.intersect_beside_1::<T>(r, h, steps);
+        }
+    }
+
+    /// The tree part of [`Bvh::intersect_stream`] with `N` walks in flight.
+    #[inline(always)]
+    fn stream_with<T: TriangleKernel, const N: usize>(
+        &self,
+        rays: &[Ray1],
+        hits: &mut [Hit1],
+        steps: &mut Steps,
+        stacks: [&mut Stack<Pending, WIDE_STACK>; N],
+    ) {
+        let mut todo = (0..rays.len()).filter(|&i| finite(&rays[i]));
+        let Some(first) = todo.next() else { return };
+        // slot k walks ray `ray[k]`; slots past the stream's rays hold a copy of the
+        // first and are not live
+        let mut ray = [first; N];
+        let mut live = 1u32;
+        for (k, i) in (1..N).zip(todo.by_ref()) {
+            ray[k] = i;
+            live |= 1 << k;
+        }
+        let mut walks: [Walk<T>; N] = std::array::from_fn(|k| Walk {
+            wr: WideRay::new(&rays[ray[k]]),
+            cur: SlotRef::ROOT,
+        });
+        while live != 0 {
+            let mut bits = live;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let w = &mut walks[k];
+                if self.step_1::<T, ANY_KZ>(&w.wr, &mut w.cur, stacks[k], &mut hits[ray[k]], steps)
+                {
+                    continue;
+                }
+                // the walk ended with its stack empty: the slot takes the next ray
+                match todo.next() {
+                    Some(i) => {
+                        ray[k] = i;
+                        *w = Walk {
+                            wr: WideRay::new(&rays[i]),
+                            cur: SlotRef::ROOT,
+                        };
+                    }
+                    None => live &= !(1 << k),
+                }
+            }
+        }
+    }
+
+    /// Whether each ray of a stream meets anything with 0 < t < `t_max[i]`: `blocked[i]`
+    /// gets what [`Bvh::occluded_1`] gives `rays[i]`. The floor and the unbounded
+    /// quadrics first, then the tree for the rays they leave unblocked, as
+    /// [`Bvh::intersect_stream`]: sixteen any-hit walks in flight, a slot taking the
+    /// next ray when its walk ends.
+    pub fn occluded_stream<T: TriangleKernel>(
+        &self,
+        rays: &[Ray1],
+        t_max: &[f32],
+        blocked: &mut [bool],
+        steps: &mut Steps,
+    ) {
+        assert!(
+            rays.len() == t_max.len() && rays.len() == blocked.len(),
+            "a t_max and an answer per ray"
+        );
+        for ((r, &t), b) in rays.iter().zip(t_max).zip(blocked.iter_mut()) {
+            *b = self.occluded_beside_1::<T>(r, t, steps);
+        }
+        if !self.wide.nodes.is_empty() {
+            with_stacks16(|s| self.occluded_stream_with::<T, 16>(rays, t_max, blocked, steps, s));
+        }
+    }
+
+    /// The tree part of [`Bvh::occluded_stream`] with `N` walks in flight.
+    #[inline(always)]
+    fn occluded_stream_with<T: TriangleKernel, const N: usize>(
+        &self,
+        rays: &[Ray1],
+        t_max: &[f32],
+        blocked: &mut [bool],
+        steps: &mut Steps,
+        stacks: [&mut Stack<SlotRef, WIDE_STACK>; N],
+    ) {
+        // the next ray left for the tree from `from` on (`blocked` is only written for
+        // rays already taken)
+        let left = |from: usize, blocked: &[bool]| {
+            (from..rays.len()).find(|&i| !blocked[i] && finite(&rays[i]))
+        };
+        let Some(first) = left(0, blocked) else {
+            return;
+        };
+        let mut ray = [first; N];
+        let mut live = 1u32;
+        let mut next = first + 1;
+        for (k, slot) in ray.iter_mut().enumerate().skip(1) {
+            let Some(i) = left(next, blocked) else { break };
+            (*slot, next) = (i, i + 1);
+            live |= 1 << k;
+        }
+        let mut walks: [WideRay<T>; N] = std::array::from_fn(|k| WideRay::new(&rays[ray[k]]));
+        let mut stacks = stacks;
+        for s in &mut stacks {
+            s.push(SlotRef::ROOT);
+        }
+        while live != 0 {
+            let mut bits = live;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let i = ray[k];
+                let Some(answer) =
+                    self.occluded_step_1::<T, ANY_KZ>(&walks[k], stacks[k], t_max[i], steps)
+                else {
+                    continue;
+                };
+                blocked[i] = answer;
+                // a walk that found a blocker leaves the rest of its stack
+                stacks[k].clear();
+                match left(next, blocked) {
+                    Some(j) => {
+                        (ray[k], next) = (j, j + 1);
+                        walks[k] = WideRay::new(&rays[j]);
+                        stacks[k].push(SlotRef::ROOT);
+                    }
+                    None => live &= !(1 << k),
+                }
+            }
+        }
+    }
+
     /// One step of a ray's closest-hit walk: the node or leaf at `cur`, then the next
     /// subtree still in front of the nearest hit; false when none is left. `KZ`: the
     /// ray's triangle permutation (0–2, fixed per ray), or [`ANY_KZ`] to pick it at
@@ -395,6 +545,14 @@ impl Bvh {
             let bits = m.bits();
             w.prefetch_children_1(node, bits);
             WideBvh::push_any_hit(node, near, bits, true, stack);
+        } else if KZ == ANY_KZ {
+            if with_const!(
+                wr.r.kz,
+                [0, 1, 2],
+                self.leaf_occluded_1::<T>(cur, wr, t_max, steps)
+            ) {
+                return Some(true);
+            }
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);
         }
