@@ -1059,14 +1059,25 @@ fn streams_give_every_ray_what_single_queries_give_it() {
         &mixed_scene(),
         DVec3::new(0.0, 0.0, 20.0),
     ));
+    // these trees are too small for stepped streams: each is tested both ways
+    assert!(!big.wide.stream_steps && !mixed.wide.stream_any_hit_steps);
+    let stepped = |b: &Bvh| {
+        let mut b = b.clone();
+        (b.wide.stream_steps, b.wide.stream_any_hit_steps) = (true, true);
+        b
+    };
+    let (big_s, mixed_s) = (stepped(&big), stepped(&mixed));
     let mut rng = Rng(31);
-    for (bvh, lo, hi) in [
-        (&big, Vec3::new(-2.0, -1.5, -2.0), Vec3::new(2.0, 1.5, 2.0)),
-        (
-            &mixed,
-            Vec3::new(-100.0, -100.0, -20.0),
-            Vec3::new(80.0, 80.0, 50.0),
-        ),
+    let torus_box = (Vec3::new(-2.0, -1.5, -2.0), Vec3::new(2.0, 1.5, 2.0));
+    let mixed_box = (
+        Vec3::new(-100.0, -100.0, -20.0),
+        Vec3::new(80.0, 80.0, 50.0),
+    );
+    for (bvh, (lo, hi)) in [
+        (&big, torus_box),
+        (&big_s, torus_box),
+        (&mixed, mixed_box),
+        (&mixed_s, mixed_box),
     ] {
         let mut rays = rays_of(&incoherent_rays(3_000, 5));
         rays.extend(edge_rays(&bvh.prims.triangles, 2_000, lo, hi, &mut rng));

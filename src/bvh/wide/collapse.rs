@@ -11,7 +11,9 @@
 
 use wide::f32x8;
 
-use super::{MERGE_MAX, PREFETCH_FROM, TriBlock, WideBvh, WideNode};
+use super::{
+    MERGE_MAX, PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, TriBlock, WideBvh, WideNode,
+};
 use crate::bvh::STACK_SIZE;
 use crate::bvh::memory::{huge_vec, prefetch_lines};
 use crate::bvh::node::BvhNode;
@@ -263,6 +265,8 @@ impl WideBvh {
         }
         debug_assert_eq!(w.blocks.len(), n_blocks as usize);
         w.prefetches = w.walked_bytes() > PREFETCH_FROM;
+        w.stream_steps = w.walked_bytes() >= STREAM_FROM;
+        w.stream_any_hit_steps = w.walked_bytes() >= STREAM_ANY_HIT_FROM;
         w
     }
 

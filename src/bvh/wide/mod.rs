@@ -115,6 +115,12 @@ pub struct WideBvh {
     /// and the prefetches would be instructions and mispredicted loop exits for
     /// nothing). The frustum walks always prefetch the children they push.
     pub prefetches: bool,
+    /// Whether a stream's closest-hit walks are stepped in turn (`Bvh::intersect_stream`):
+    /// in trees of at least [`STREAM_FROM`] bytes walked; in smaller ones they run one
+    /// after another.
+    pub stream_steps: bool,
+    /// The same for a stream's any-hit walks, from [`STREAM_ANY_HIT_FROM`].
+    pub stream_any_hit_steps: bool,
 }
 
 /// Size of the walked arrays (wide nodes and triangle blocks) from which the
@@ -122,6 +128,18 @@ pub struct WideBvh {
 /// triangles (0.5 MiB walked) run faster without, from 10 000 (0.9 MiB) with
 /// (`benches/README.md`).
 pub const PREFETCH_FROM: usize = 768 << 10;
+
+/// Size of the walked arrays from which a stream's closest-hit walks are stepped in turn:
+/// incoherent rays on tori of 6k, 20k and 40k triangles (up to 3.7 MB walked) ran 0.92,
+/// 0.87 and 0.94 of one walk after another, 100k (9.2 MB) 1.08 and 1M 1.09 (the
+/// stream's stepped walks against the better of `mode=1` and `mode=16`,
+/// `benches/README.md`), on a host with 2 MiB of L2 per core.
+pub const STREAM_FROM: usize = 6 << 20;
+
+/// [`STREAM_FROM`] for any-hit walks, which mostly end early: incoherent shadow rays
+/// on tori of 100k, 300k, 700k and 1M triangles ran 0.94, 1.00, 1.13 and 1.25 of one
+/// walk after another.
+pub const STREAM_ANY_HIT_FROM: usize = 24 << 20;
 
 /// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
 /// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.

@@ -226,7 +226,8 @@ impl Bvh {
     /// node or leaf each, and a walk that ends hands its slot to the next ray, so that
     /// sixteen rays' fetches overlap from the stream's first ray to its last (a packet's
     /// stepped lanes end one by one, the last alone). For rays that share little
-    /// (`benches/README.md`: incoherent rays, `mode=1s`).
+    /// (`benches/README.md`: incoherent rays, `mode=1s`); in a tree small enough to stay
+    /// in the caches (`WideBvh::stream_steps` false) the walks run one after another.
     pub fn intersect_stream<T: TriangleKernel>(
         &self,
         rays: &[Ray1],
@@ -234,6 +235,12 @@ impl Bvh {
         steps: &mut Steps,
     ) {
         assert_eq!(rays.len(), hits.len(), "a hit per ray");
+        if !self.wide.stream_steps {
+            for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                self.intersect_1::<T>(r, h, steps);
+            }
+            return;
+        }
         if !self.wide.nodes.is_empty() {
             with_stacks16(|s| self.stream_with::<T, 16>(rays, hits, steps, s));
         }
@@ -294,7 +301,7 @@ impl Bvh {
     /// gets what [`Bvh::occluded_1`] gives `rays[i]`. The floor and the unbounded
     /// quadrics first, then the tree for the rays they leave unblocked, as
     /// [`Bvh::intersect_stream`]: sixteen any-hit walks in flight, a slot taking the
-    /// next ray when its walk ends.
+    /// next ray when its walk ends (from a larger tree on: `WideBvh::stream_any_hit_steps`).
     pub fn occluded_stream<T: TriangleKernel>(
         &self,
         rays: &[Ray1],
@@ -306,6 +313,12 @@ impl Bvh {
             rays.len() == t_max.len() && rays.len() == blocked.len(),
             "a t_max and an answer per ray"
         );
+        if !self.wide.stream_any_hit_steps {
+            for ((r, &t), b) in rays.iter().zip(t_max).zip(blocked.iter_mut()) {
+                *b = self.occluded_1::<T>(r, t, steps);
+            }
+            return;
+        }
         for ((r, &t), b) in rays.iter().zip(t_max).zip(blocked.iter_mut()) {
             *b = self.occluded_beside_1::<T>(r, t, steps);
         }
