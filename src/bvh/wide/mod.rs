@@ -131,7 +131,7 @@ pub const PREFETCH_FROM: usize = 768 << 10;
 
 /// Size of the walked arrays from which a stream's closest-hit walks are stepped in turn:
 /// incoherent rays on tori of 6k, 20k and 40k triangles (up to 3.7 MB walked) ran 0.92,
-/// 0.87 and 0.94 of one walk after another, 100k (9.2 MB) 1.08 and 1M 1.09 (the
+/// 0.87 and 0.94 of one walk after another, 100k (9.2 MB) 1.09 and 1M 1.12 (the
 /// stream's stepped walks against the better of `mode=1` and `mode=16`,
 /// `benches/README.md`), on a host with 2 MiB of L2 per core.
 pub const STREAM_FROM: usize = 6 << 20;
