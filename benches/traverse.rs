@@ -36,6 +36,7 @@ fn bench(c: &mut Criterion) {
         g.throughput(Throughput::Elements(rays.origin.len() as u64));
         for (mode, tag) in [
             (Mode::Single, "1"),
+            (Mode::Stream, "1s"),
             (Mode::Packet8, "x8"),
             (Mode::Packet8Binary, "x8b"),
         ] {
