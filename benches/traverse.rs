@@ -1,6 +1,7 @@
 //! BVH traversal of the standard torus100k: coherent (primary camera rays in 4 × 2
 //! packets) and incoherent rays, packet (`x8`: the 8-wide tree for coherent packets),
-//! binary packet (`x8b`) and single-ray (`1`) paths, 1 thread.
+//! binary packet (`x8b`), single-ray (`1`) and stream (`1s`: sixteen walks in flight,
+//! this tree being large enough for them) paths, 1 thread.
 //! Steps per ray (box and triangle tests) are printed once.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -24,8 +24,8 @@ use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::traverse_x8::LANES_MIN_NODES;
-use octaray::bvh::wide::PREFETCH_FROM;
 use octaray::bvh::wide::walk_x8::{FRUSTUM_SPREAD, LANES_SPREAD};
+use octaray::bvh::wide::{PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM};
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::triangle::Watertight;
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
@@ -1024,16 +1024,17 @@ fn origins_differing_in_a_zeros_sign_keep_each_lanes_bits() {
 
 /// Each ray of `rays` as one stream (`Bvh::intersect_stream`/`occluded_stream`) gets
 /// what the single-ray queries give it, bit for bit, with the same node and primitive
-/// tests in all; `t_max` per ray for the shadow queries.
+/// tests in all; `t_max` per ray, the shadow queries' bound and the closest-hit
+/// queries' starting `t`.
 fn stream_as_single_queries(bvh: &Bvh, rays: &[Ray1], t_max: &[f32]) -> usize {
     let (mut ss, mut s1) = (Steps::default(), Steps::default());
-    let mut hits = vec![Hit1::new(f32::INFINITY); rays.len()];
+    let mut hits: Vec<Hit1> = t_max.iter().map(|&t| Hit1::new(t)).collect();
     bvh.intersect_stream::<Watertight>(rays, &mut hits, &mut ss);
     let mut blocked = vec![false; rays.len()];
     bvh.occluded_stream::<Watertight>(rays, t_max, &mut blocked, &mut ss);
     let mut n_hits = 0;
     for ((r, h), (&tm, &b)) in rays.iter().zip(&hits).zip(t_max.iter().zip(&blocked)) {
-        let mut one = Hit1::new(f32::INFINITY);
+        let mut one = Hit1::new(tm);
         bvh.intersect_1::<Watertight>(r, &mut one, &mut s1);
         assert_eq!(
             (one.t.to_bits(), one.prim, one.u.to_bits(), one.v.to_bits()),
@@ -1060,7 +1061,16 @@ fn streams_give_every_ray_what_single_queries_give_it() {
         DVec3::new(0.0, 0.0, 20.0),
     ));
     // these trees are too small for stepped streams: each is tested both ways
-    assert!(!big.wide.stream_steps && !mixed.wide.stream_any_hit_steps);
+    for b in [&big, &mixed] {
+        assert!(!b.wide.stream_steps && !b.wide.stream_any_hit_steps);
+    }
+    // a floor and nothing in the tree
+    let floor_only = {
+        let mut scene = mixed_scene();
+        scene.objects.clear();
+        Bvh::build(PrimSet::from_scene(&scene, DVec3::ZERO))
+    };
+    assert!(floor_only.prims.floor.is_some() && floor_only.wide.nodes.is_empty());
     let stepped = |b: &Bvh| {
         let mut b = b.clone();
         (b.wide.stream_steps, b.wide.stream_any_hit_steps) = (true, true);
@@ -1073,33 +1083,71 @@ fn streams_give_every_ray_what_single_queries_give_it() {
         Vec3::new(-100.0, -100.0, -20.0),
         Vec3::new(80.0, 80.0, 50.0),
     );
+    let floor_s = stepped(&floor_only);
     for (bvh, (lo, hi)) in [
         (&big, torus_box),
         (&big_s, torus_box),
         (&mixed, mixed_box),
         (&mixed_s, mixed_box),
+        (&floor_only, mixed_box),
+        (&floor_s, mixed_box),
     ] {
         let mut rays = rays_of(&incoherent_rays(3_000, 5));
-        rays.extend(edge_rays(&bvh.prims.triangles, 2_000, lo, hi, &mut rng));
+        if !bvh.prims.triangles.is_empty() {
+            rays.extend(edge_rays(&bvh.prims.triangles, 2_000, lo, hi, &mut rng));
+        }
         rays.extend(signed_zero_rays(lo, hi, 10));
         // rays that never enter the tree, here and there in the stream
         for k in [0, 17, 500, 3_001] {
             rays.insert(k, Ray1::new(Vec3::new(f32::NAN, 0.0, 1.0), Vec3::NEG_Z));
         }
         rays.push(Ray1::new(Vec3::ZERO, Vec3::splat(f32::INFINITY)));
-        // shadow distances: none (0), short, long, unbounded
+        // bounds: none (0, −0, negative, NaN), short, long, unbounded
         let t_max: Vec<f32> = (0..rays.len())
-            .map(|k| match k % 5 {
+            .map(|k| match k % 13 {
                 0 => 0.0,
-                1 => f32::INFINITY,
+                1 => -0.0,
+                2 => -1.0,
+                3 => f32::NAN,
+                4..=6 => f32::INFINITY,
                 _ => rng.f64() as f32 * 3.0,
             })
             .collect();
         let hits = stream_as_single_queries(bvh, &rays, &t_max);
-        assert!(hits > rays.len() / 4, "{hits} of {}", rays.len());
+        if !bvh.wide.nodes.is_empty() {
+            assert!(hits > rays.len() / 8, "{hits} of {}", rays.len());
+        }
         // streams shorter than the walks in flight, and empty
         for n in [0, 1, 5, 16, 17] {
             stream_as_single_queries(bvh, &rays[1..1 + n], &t_max[1..1 + n]);
         }
+        // a stream of rays that never enter the tree
+        let nan = vec![Ray1::new(Vec3::splat(f32::NAN), Vec3::NEG_Z); 20];
+        stream_as_single_queries(bvh, &nan, &t_max[..20]);
     }
+}
+
+/// Streams step their walks from the sizes `STREAM_FROM` and `STREAM_ANY_HIT_FROM` of the
+/// arrays walked on, in every tree (the torus above stays below both).
+#[test]
+fn streams_step_only_in_trees_past_their_sizes() {
+    for bvh in [
+        torus_bvh(),
+        Bvh::build(PrimSet::from_triangles(torus(400, 100))),
+    ] {
+        let bytes = bvh.wide.walked_bytes();
+        assert_eq!(bvh.wide.stream_steps, bytes >= STREAM_FROM, "{bytes} B");
+        assert_eq!(
+            bvh.wide.stream_any_hit_steps,
+            bytes >= STREAM_ANY_HIT_FROM,
+            "{bytes} B"
+        );
+    }
+    let big = Bvh::build(PrimSet::from_triangles(torus(400, 100)));
+    assert!(
+        big.wide.stream_steps,
+        "80k triangles walk {} B",
+        big.wide.walked_bytes()
+    );
+    assert!(!Bvh::build(PrimSet::default()).wide.stream_steps);
 }

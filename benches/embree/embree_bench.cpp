@@ -159,7 +159,7 @@ int main(int argc, char** argv) {
         x.tnear = 0; x.tfar = tmax[i]; x.mask = ~0u; x.flags = 0; x.time = 0;
         ray.push_back(x); at.push_back(i);
       }
-      rtcOccluded1M(s, &ctx, ray.data(), unsigned(ray.size()), sizeof(RTCRay));
+      if (!ray.empty()) rtcOccluded1M(s, &ctx, ray.data(), unsigned(ray.size()), sizeof(RTCRay));
       for (size_t k = 0; k < ray.size(); k++) blocked[at[k]] = ray[k].tfar < 0;
     }
 #endif

@@ -996,6 +996,38 @@ pub fn torus(nu: usize, nv: usize) -> Vec<Triangle32> {
 mod tests {
     use super::*;
 
+    /// `mode=1s` writes each ray's answer where `mode=1` writes it, closest hit and
+    /// shadow rays (some without one), with the same tests, on a tree whose streams
+    /// step their walks and on one whose streams do not.
+    #[test]
+    fn the_stream_mode_traces_what_the_single_ray_mode_traces() {
+        let small = Bvh::build(PrimSet::from_triangles(torus(60, 40)));
+        let mut big = small.clone();
+        (big.wide.stream_steps, big.wide.stream_any_hit_steps) = (true, true);
+        assert!(!small.wide.stream_steps);
+        // more than one work item, the last one short
+        let rays = incoherent_rays(2 * CHUNK + 300, 3);
+        for bvh in [&small, &big] {
+            let n = rays.origin.len();
+            let (mut t1, mut ts) = (vec![0.0; n], vec![0.0; n]);
+            let s1 = trace(bvh, &rays, Mode::Single, &mut t1);
+            let ss = trace(bvh, &rays, Mode::Stream, &mut ts);
+            assert_eq!(
+                t1.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+                ts.iter().map(|t| t.to_bits()).collect::<Vec<_>>()
+            );
+            assert_eq!(s1, ss);
+            let set = shadow_rays(rays.clone(), t1.clone());
+            assert!(set.t_max.contains(&0.0) && set.t_max.iter().any(|&t| t > 0.0));
+            let (mut b1, mut bs) = (vec![2u8; n], vec![2u8; n]);
+            let s1 = trace_occluded(bvh, &set, Mode::Single, &mut b1);
+            let ss = trace_occluded(bvh, &set, Mode::Stream, &mut bs);
+            assert_eq!(b1, bs);
+            assert_eq!(s1, ss);
+            assert!(b1.contains(&1) && b1.contains(&0));
+        }
+    }
+
     /// bench-trace takes a mesh's triangles as the renderer does: the zero-area ones
     /// (collinear corners, a repeated corner, all three the same) are dropped, not
     /// traced (10,000 identical degenerate faces took bench-trace 106 s).

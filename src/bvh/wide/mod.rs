@@ -129,11 +129,11 @@ pub struct WideBvh {
 /// (`benches/README.md`).
 pub const PREFETCH_FROM: usize = 768 << 10;
 
-/// Size of the walked arrays from which a stream's closest-hit walks are stepped in turn:
-/// incoherent rays on tori of 6k, 20k and 40k triangles (up to 3.7 MB walked) ran 0.92,
-/// 0.87 and 0.94 of one walk after another, 100k (9.2 MB) 1.09 and 1M 1.12 (the
-/// stream's stepped walks against the better of `mode=1` and `mode=16`,
-/// `benches/README.md`), on a host with 2 MiB of L2 per core.
+/// Size of the walked arrays from which a stream's closest-hit walks are stepped in turn.
+/// Incoherent rays, stepped stream over one walk after another (`mode=1`): tori of 6k,
+/// 20k and 40k triangles (up to 3.7 MB walked) 0.92, 0.87 and 0.94; torus100k (9.2 MB)
+/// 1.09; over the better of `mode=1` and `mode=16`, torus1m 1.12 (`benches/README.md`).
+/// On a host with 2 MiB of L2 per core.
 pub const STREAM_FROM: usize = 6 << 20;
 
 /// [`STREAM_FROM`] for any-hit walks, which mostly end early: incoherent shadow rays

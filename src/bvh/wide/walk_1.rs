@@ -72,7 +72,8 @@ fn in_turn(mut live: u32, mut step: impl FnMut(usize) -> bool) {
     }
 }
 
-/// [`Bvh::step_1`]'s `KZ` for walks whose ray's permutation is read at each leaf.
+/// [`Bvh::step_1`]'s and [`Bvh::occluded_step_1`]'s `KZ` for walks whose ray's
+/// permutation is read at each leaf (walks of different rays stepped in turn).
 const ANY_KZ: usize = 3;
 
 /// One ray's walk in progress (what `walk_1` keeps in locals), for walks stepped in
@@ -222,12 +223,14 @@ impl Bvh {
     }
 
     /// Nearest hit of each ray of a stream: `hits[i]` gets what [`Bvh::intersect_1`]
-    /// gives `rays[i]`. Sixteen walks of the wide tree are in flight, stepped in turn one
-    /// node or leaf each, and a walk that ends hands its slot to the next ray, so that
-    /// sixteen rays' fetches overlap from the stream's first ray to its last (a packet's
-    /// stepped lanes end one by one, the last alone). For rays that share little
-    /// (`benches/README.md`: incoherent rays, `mode=1s`); in a tree small enough to stay
-    /// in the caches (`WideBvh::stream_steps` false) the walks run one after another.
+    /// gives `rays[i]` (its `t` bounds the search as there). Sixteen walks of the wide
+    /// tree are in flight, stepped in turn one node or leaf each, and a walk that ends
+    /// hands its slot to the next ray, so that sixteen rays' fetches overlap from the
+    /// stream's first ray to its last (a packet's stepped lanes end one by one, the last
+    /// alone). For rays that share little (`benches/README.md`: incoherent rays,
+    /// `mode=1s`); in a tree small enough to stay in the caches
+    /// (`WideBvh::stream_steps` false) the rays walk one after another. Panics when
+    /// `hits` and `rays` differ in length.
     pub fn intersect_stream<T: TriangleKernel>(
         &self,
         rays: &[Ray1],
@@ -242,7 +245,7 @@ impl Bvh {
             return;
         }
         if !self.wide.nodes.is_empty() {
-            with_stacks16(|s| self.stream_with::<T, 16>(rays, hits, steps, s));
+            with_stacks16(|s| self.intersect_stream_with::<T, 16>(rays, hits, steps, s));
         }
         for (r, h) in rays.iter().zip(hits.iter_mut()) {
             self.intersect_beside_1::<T>(r, h, steps);
@@ -251,13 +254,14 @@ impl Bvh {
 
     /// The tree part of [`Bvh::intersect_stream`] with `N` walks in flight.
     #[inline(always)]
-    fn stream_with<T: TriangleKernel, const N: usize>(
+    fn intersect_stream_with<T: TriangleKernel, const N: usize>(
         &self,
         rays: &[Ray1],
         hits: &mut [Hit1],
         steps: &mut Steps,
         stacks: [&mut Stack<Pending, WIDE_STACK>; N],
     ) {
+        const { assert!(N <= 32, "a walk per bit of a u32") };
         let mut todo = (0..rays.len()).filter(|&i| finite(&rays[i]));
         let Some(first) = todo.next() else { return };
         // slot k walks ray `ray[k]`; slots past the stream's rays hold a copy of the
@@ -272,36 +276,28 @@ impl Bvh {
             wr: WideRay::new(&rays[ray[k]]),
             cur: SlotRef::ROOT,
         });
-        while live != 0 {
-            let mut bits = live;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let w = &mut walks[k];
-                if self.step_1::<T, ANY_KZ>(&w.wr, &mut w.cur, stacks[k], &mut hits[ray[k]], steps)
-                {
-                    continue;
-                }
-                // the walk ended with its stack empty: the slot takes the next ray
-                match todo.next() {
-                    Some(i) => {
-                        ray[k] = i;
-                        *w = Walk {
-                            wr: WideRay::new(&rays[i]),
-                            cur: SlotRef::ROOT,
-                        };
-                    }
-                    None => live &= !(1 << k),
-                }
+        in_turn(live, |k| {
+            let w = &mut walks[k];
+            if self.step_1::<T, ANY_KZ>(&w.wr, &mut w.cur, stacks[k], &mut hits[ray[k]], steps) {
+                return true;
             }
-        }
+            // the walk ended with its stack empty: the slot takes the next ray
+            let Some(i) = todo.next() else { return false };
+            ray[k] = i;
+            *w = Walk {
+                wr: WideRay::new(&rays[i]),
+                cur: SlotRef::ROOT,
+            };
+            true
+        });
     }
 
     /// Whether each ray of a stream meets anything with 0 < t < `t_max[i]`: `blocked[i]`
     /// gets what [`Bvh::occluded_1`] gives `rays[i]`. The floor and the unbounded
     /// quadrics first, then the tree for the rays they leave unblocked, as
-    /// [`Bvh::intersect_stream`]: sixteen any-hit walks in flight, a slot taking the
-    /// next ray when its walk ends (from a larger tree on: `WideBvh::stream_any_hit_steps`).
+    /// [`Bvh::intersect_stream`]: sixteen any-hit walks in flight, a slot taking the next
+    /// ray when its walk ends (in trees from `WideBvh::stream_any_hit_steps` on; below,
+    /// one ray after another). Panics when the three slices differ in length.
     pub fn occluded_stream<T: TriangleKernel>(
         &self,
         rays: &[Ray1],
@@ -335,53 +331,45 @@ impl Bvh {
         t_max: &[f32],
         blocked: &mut [bool],
         steps: &mut Steps,
-        stacks: [&mut Stack<SlotRef, WIDE_STACK>; N],
+        mut stacks: [&mut Stack<SlotRef, WIDE_STACK>; N],
     ) {
-        // the next ray left for the tree from `from` on (`blocked` is only written for
-        // rays already taken)
-        let left = |from: usize, blocked: &[bool]| {
-            (from..rays.len()).find(|&i| !blocked[i] && finite(&rays[i]))
+        const { assert!(N <= 32, "a walk per bit of a u32") };
+        // the next ray the floor and the quadrics left for the tree (`blocked` is
+        // written only for rays already taken)
+        let mut next = 0;
+        let mut take = |blocked: &[bool]| {
+            let i = (next..rays.len()).find(|&i| !blocked[i] && finite(&rays[i]))?;
+            next = i + 1;
+            Some(i)
         };
-        let Some(first) = left(0, blocked) else {
-            return;
-        };
+        let Some(first) = take(blocked) else { return };
         let mut ray = [first; N];
         let mut live = 1u32;
-        let mut next = first + 1;
         for (k, slot) in ray.iter_mut().enumerate().skip(1) {
-            let Some(i) = left(next, blocked) else { break };
-            (*slot, next) = (i, i + 1);
+            let Some(i) = take(blocked) else { break };
+            *slot = i;
             live |= 1 << k;
         }
         let mut walks: [WideRay<T>; N] = std::array::from_fn(|k| WideRay::new(&rays[ray[k]]));
-        let mut stacks = stacks;
         for s in &mut stacks {
             s.push(SlotRef::ROOT);
         }
-        while live != 0 {
-            let mut bits = live;
-            while bits != 0 {
-                let k = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let i = ray[k];
-                let Some(answer) =
-                    self.occluded_step_1::<T, ANY_KZ>(&walks[k], stacks[k], t_max[i], steps)
-                else {
-                    continue;
-                };
-                blocked[i] = answer;
-                // a walk that found a blocker leaves the rest of its stack
-                stacks[k].clear();
-                match left(next, blocked) {
-                    Some(j) => {
-                        (ray[k], next) = (j, j + 1);
-                        walks[k] = WideRay::new(&rays[j]);
-                        stacks[k].push(SlotRef::ROOT);
-                    }
-                    None => live &= !(1 << k),
-                }
-            }
-        }
+        in_turn(live, |k| {
+            let i = ray[k];
+            let Some(answer) =
+                self.occluded_step_1::<T, ANY_KZ>(&walks[k], stacks[k], t_max[i], steps)
+            else {
+                return true;
+            };
+            blocked[i] = answer;
+            // a walk that found a blocker leaves the rest of its stack
+            stacks[k].clear();
+            let Some(j) = take(blocked) else { return false };
+            ray[k] = j;
+            walks[k] = WideRay::new(&rays[j]);
+            stacks[k].push(SlotRef::ROOT);
+            true
+        });
     }
 
     /// One step of a ray's closest-hit walk: the node or leaf at `cur`, then the next
@@ -538,7 +526,7 @@ impl Bvh {
     /// One step of the any-hit walk, the entry on top of `stack`: a node, whose hit
     /// children are pushed ([`WideBvh::push_any_hit`]: the farthest interior child
     /// visited first of those, its leaves last, tested next), or a leaf, tested.
-    /// `Some(answer)` when the walk has ended.
+    /// `Some(answer)` when the walk has ended. `KZ` as [`Bvh::step_1`]'s.
     #[inline(always)]
     fn occluded_step_1<T: TriangleKernel, const KZ: usize>(
         &self,
