@@ -110,13 +110,18 @@ int main(int argc, char** argv) {
 #define ISECT1(rh) rtcIntersect1(s, &rh, &args)
 #define ISECTN(n, v, rh) rtcIntersect##n(v, s, &rh, &args)
 #endif
+    // shadow ray i as one RTCRay (modes 1 and 1M)
+    auto shadow_ray = [&](size_t i) {
+      RTCRay ray; const float* r = &R[i * 6];
+      ray.org_x = r[0]; ray.org_y = r[1]; ray.org_z = r[2]; ray.dir_x = r[3]; ray.dir_y = r[4]; ray.dir_z = r[5];
+      ray.tnear = 0; ray.tfar = tmax[i]; ray.mask = ~0u; ray.flags = 0; ray.time = 0;
+      return ray;
+    };
     if (shadow && mode == "1") {
       for (size_t i = b; i < e; i++) {
         blocked[i] = 0;
         if (!(tmax[i] > 0)) continue;
-        RTCRay ray; const float* r = &R[i * 6];
-        ray.org_x = r[0]; ray.org_y = r[1]; ray.org_z = r[2]; ray.dir_x = r[3]; ray.dir_y = r[4]; ray.dir_z = r[5];
-        ray.tnear = 0; ray.tfar = tmax[i]; ray.mask = ~0u; ray.flags = 0; ray.time = 0;
+        RTCRay ray = shadow_ray(i);
 #if defined(E3)
         rtcOccluded1(s, &ctx, &ray);
 #else
@@ -154,10 +159,7 @@ int main(int argc, char** argv) {
       for (size_t i = b; i < e; i++) {
         blocked[i] = 0;
         if (!(tmax[i] > 0)) continue;
-        RTCRay x; const float* r = &R[i * 6];
-        x.org_x = r[0]; x.org_y = r[1]; x.org_z = r[2]; x.dir_x = r[3]; x.dir_y = r[4]; x.dir_z = r[5];
-        x.tnear = 0; x.tfar = tmax[i]; x.mask = ~0u; x.flags = 0; x.time = 0;
-        ray.push_back(x); at.push_back(i);
+        ray.push_back(shadow_ray(i)); at.push_back(i);
       }
       if (!ray.empty()) rtcOccluded1M(s, &ctx, ray.data(), unsigned(ray.size()), sizeof(RTCRay));
       for (size_t k = 0; k < ray.size(); k++) blocked[at[k]] = ray[k].tfar < 0;
