@@ -6,7 +6,7 @@
 
 use wide::f32x8;
 
-use super::{Pending, WIDE_STACK, WideBvh, WideNode};
+use super::{Pending, TriBlock, WIDE_STACK, WideBvh, WideNode};
 use crate::bvh::slot::{SlotRef, Stack};
 use crate::bvh::{Bvh, Steps};
 use crate::geometry::triangle::TriangleKernel;
@@ -103,6 +103,36 @@ impl BoxRay {
             near: [0, 1, 2].map(|a| 2 * a + neg[a]),
             far: [0, 1, 2].map(|a| 2 * a + 1 - neg[a]),
         }
+    }
+
+    /// The lanes of `m` (triangles of block `b` the ray hits in front of `t_max`) whose
+    /// binary leaf box the ray meets by [`BoxRay::test`], as the binary walk requires
+    /// to reach them. A block of one binary leaf: all of them (every lane's box is the
+    /// slot's, which the ray has passed with a t_max >= this one). Else first the
+    /// triangles' own boxes, the min and max of the corners just read for the hit: a
+    /// leaf box contains its triangles' boxes (the union of them, rounded outward,
+    /// `Aabb::outward`), and the slab test is monotone under containment, so a lane
+    /// that passes its triangle's box passes its leaf box. Only a lane that misses its
+    /// triangle's box (a hit at the box's edge, within rounding) reads the leaf boxes,
+    /// three lines that the walk would otherwise fetch at nearly every hit.
+    #[inline(always)]
+    fn leaf_lanes(&self, b: &TriBlock, m: Mask8, t_max: f32) -> Mask8 {
+        if b.one_leaf {
+            return m;
+        }
+        let v = &b.tri.v;
+        let own = [0, 1, 2].map(|a| {
+            let (p, q, r) = (v[0][a], v[1][a], v[2][a]);
+            [p.fast_min(q).fast_min(r), p.fast_max(q).fast_max(r)]
+        });
+        let own = [
+            own[0][0], own[0][1], own[1][0], own[1][1], own[2][0], own[2][1],
+        ];
+        let pass = m & self.test(&own, t_max).0;
+        if pass.bits() == m.bits() {
+            return m;
+        }
+        pass | (m & self.test(&b.bounds, t_max).0)
     }
 
     /// The slab test of `BvhNode::intersect_1` on the eight slots: bit i of the mask is
@@ -442,18 +472,12 @@ impl Bvh {
         steps.leaf(PrimKind::Triangle, count, 1);
         let first = leaf.child as usize;
         for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
-            // the leaf boxes only for lanes that hit: three lines fewer to fetch per block
+            // the leaf boxes only for lanes that hit (`BoxRay::leaf_lanes`)
             let (m, t, u, v) = T::intersect_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, hit.t);
             if m.none() {
                 continue;
             }
-            // a block of one binary leaf: every lane's box is the slot's, which the ray
-            // has passed (with a t_max >= hit.t, and a hit lies in front of hit.t)
-            let mut bits = if b.one_leaf {
-                m.bits()
-            } else {
-                (m & wr.boxes.test(&b.bounds, hit.t).0).bits()
-            };
+            let mut bits = wr.boxes.leaf_lanes(b, m, hit.t).bits();
             let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
             while bits != 0 {
                 let l = bits.trailing_zeros() as usize;
@@ -578,7 +602,71 @@ impl Bvh {
             .iter()
             .any(|b| {
                 let m = T::occluded_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, t_max);
-                m.any() && (b.one_leaf || (m & wr.boxes.test(&b.bounds, t_max).0).any())
+                m.any() && wr.boxes.leaf_lanes(b, m, t_max).any()
             })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::triangle::{Triangle8, Triangle32};
+    use glam::Vec3;
+
+    /// A triangle in the plane z = 0 over [x0, x1] × [y0, y1].
+    fn flat(x0: f32, x1: f32, y0: f32, y1: f32) -> Triangle32 {
+        Triangle32 {
+            v: [
+                Vec3::new(x0, y0, 0.0),
+                Vec3::new(x1, y0, 0.0),
+                Vec3::new(x0, y1, 0.0),
+            ],
+        }
+    }
+
+    /// Lane boxes, lane i = `boxes[i]` ([lo, hi] per axis), the rest empty.
+    fn lane_boxes(boxes: &[[[f32; 2]; 3]]) -> [f32x8; 6] {
+        let mut b = [[f32::INFINITY; 8], [f32::NEG_INFINITY; 8]].repeat(3);
+        for (i, bx) in boxes.iter().enumerate() {
+            for a in 0..3 {
+                b[2 * a][i] = bx[a][0];
+                b[2 * a + 1][i] = bx[a][1];
+            }
+        }
+        [0, 1, 2, 3, 4, 5].map(|k| f32x8::new(b[k]))
+    }
+
+    #[test]
+    fn a_hit_lane_counts_where_the_ray_meets_its_leaf_box_whatever_its_own_box_says() {
+        // the ray runs down the z axis from z = 1
+        let r = Ray1::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        let boxes = BoxRay::new(&r);
+        let tris = [
+            flat(-1.0, 1.0, -1.0, 1.0), // lane 0: its own box met
+            flat(5.0, 6.0, 5.0, 6.0),   // lane 1: its own box missed, its leaf box met
+            flat(5.0, 6.0, 5.0, 6.0),   // lane 2: both missed
+            flat(-1.0, 1.0, -1.0, 1.0), // lane 3: met, but not in the mask
+        ];
+        let block = |one_leaf| TriBlock {
+            tri: Triangle8::new(&tris),
+            bounds: lane_boxes(&[
+                [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
+                [[-2.0, 6.0], [-2.0, 6.0], [-1.0, 0.0]],
+                [[4.0, 7.0], [4.0, 7.0], [-1.0, 1.0]],
+                [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
+            ]),
+            first: 0,
+            count: tris.len() as u32,
+            one_leaf,
+        };
+        let m = Mask8::from_bits(0b0111);
+        assert_eq!(
+            boxes.leaf_lanes(&block(false), m, f32::INFINITY).bits(),
+            0b0011
+        );
+        // t_max before the boxes: none
+        assert_eq!(boxes.leaf_lanes(&block(false), m, 0.5).bits(), 0);
+        // a block of one binary leaf: the slot's box, already passed
+        assert_eq!(boxes.leaf_lanes(&block(true), m, 0.5).bits(), 0b0111);
     }
 }
