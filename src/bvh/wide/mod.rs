@@ -79,7 +79,8 @@ impl WideNode {
 /// Up to eight triangles of one leaf, SoA, with the index of the first in
 /// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
 /// that never hits), and per lane the box of the binary leaf the triangle came from
-/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines.
+/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines:
+/// the triangles and the counts in the first five, the leaf boxes in the last three.
 ///
 /// A lane's hit counts only when the ray also passes its binary leaf's box: then a
 /// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
@@ -91,15 +92,19 @@ impl WideNode {
 #[repr(C, align(64))]
 pub struct TriBlock {
     pub tri: Triangle8,
-    pub bounds: [f32x8; 6],
     pub first: u32,
     pub count: u32,
     /// All lanes come from one binary leaf, whose box is the slot's: the walks skip
     /// the lane boxes.
     pub one_leaf: bool,
+    pub bounds: [f32x8; 6],
 }
 
 const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
+// the triangles and what every hit reads (`first`, `one_leaf`) in the first five lines,
+// the leaf boxes in the last three: a hit reads them only where its triangle's own box
+// cannot decide (`walk_1::BoxRay::leaf_lanes`)
+const _: () = assert!(std::mem::offset_of!(TriBlock, one_leaf) < 5 * 64);
 
 /// The 8-wide tree over the same primitives as the binary one (it owns copies of the
 /// triangles in blocks; the primitive codes it reports index `PrimSet`).
