@@ -336,6 +336,59 @@ fn wide_equals_binary_on_a_mixed_scene() {
     );
 }
 
+/// A triangle past ±2^44, where the build clamps every box (`PrimSet::bounds`), merged
+/// into one block with a triangle near the origin: a ray that meets the far triangle
+/// beyond its clamped leaf box gets the binary walk's answer from the wide walks too
+/// (the single-ray walks check a hit lane's leaf box by its triangle's own box first,
+/// clamped the same way).
+#[test]
+fn wide_equals_binary_past_the_clamped_bounds() {
+    let (c, s) = (Vec3::new(2.0e13, 2.4e13, 0.0), 1.0e9);
+    let far = Triangle32 {
+        v: [
+            c + Vec3::new(s, -s, -s),
+            c + Vec3::new(-s, s, -s),
+            c + Vec3::new(0.0, 0.0, s),
+        ],
+    };
+    let near = Triangle32 {
+        v: [
+            Vec3::new(-1.0, -1.0, 5.0),
+            Vec3::new(1.0, -1.0, 5.0),
+            Vec3::new(-1.0, 1.0, 5.0),
+        ],
+    };
+    let bvh = Bvh::build(PrimSet::from_triangles(vec![far, near]));
+    assert!(
+        bvh.wide.blocks.iter().any(|b| !b.one_leaf),
+        "the two triangles share a block of two binary leaves"
+    );
+    let mut steps = Steps::default();
+    for d in [
+        Vec3::new(1.0, 1.2, 0.0),
+        Vec3::new(1.0, 1.2, 0.01),
+        Vec3::new(0.1, 0.1, 1.0),
+    ] {
+        let r = Ray1::new(Vec3::ZERO, d.normalize());
+        for t_max in [f32::INFINITY, 1.0e14, 10.0] {
+            let (w, b) = (
+                closest(&bvh, &r, t_max, true, &mut steps),
+                closest(&bvh, &r, t_max, false, &mut steps),
+            );
+            assert_eq!(
+                (w.t.to_bits(), w.prim),
+                (b.t.to_bits(), b.prim),
+                "{r:?} {t_max}"
+            );
+            assert_eq!(
+                bvh.occluded_1::<Watertight>(&r, t_max, &mut steps),
+                bvh.occluded_1_binary::<Watertight>(&r, t_max, &mut steps),
+                "{r:?} {t_max}"
+            );
+        }
+    }
+}
+
 #[test]
 fn nan_rays_never_hit() {
     let bvh = Bvh::build(PrimSet::from_scene(&mixed_scene(), DVec3::ZERO));

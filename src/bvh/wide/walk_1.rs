@@ -109,9 +109,11 @@ impl BoxRay {
     /// binary leaf box the ray meets by [`BoxRay::test`], as the binary walk requires
     /// to reach them. A block of one binary leaf: all of them (every lane's box is the
     /// slot's, which the ray has passed with a t_max >= this one). Else first the
-    /// triangles' own boxes, the min and max of the corners just read for the hit: a
-    /// leaf box contains its triangles' boxes (the union of them, rounded outward,
-    /// `Aabb::outward`), and the slab test is monotone under containment, so a lane
+    /// triangles' own boxes, the min and max of the corners just read for the hit,
+    /// clamped to ±[`BOUNDS_LIMIT`](crate::geometry::BOUNDS_LIMIT) as the build clamps
+    /// every primitive's box: a leaf box contains its triangles' clamped boxes (their
+    /// union, rounded outward, `Aabb::outward`), and the slab test is monotone under
+    /// containment, so a lane
     /// that passes its triangle's box passes its leaf box. Only a lane that misses its
     /// triangle's box (a hit at the box's edge, within rounding) reads the leaf boxes,
     /// three lines that the walk would otherwise fetch at nearly every hit.
@@ -121,9 +123,16 @@ impl BoxRay {
             return m;
         }
         let v = &b.tri.v;
+        // clamped as `PrimSet::bounds` clamps the boxes the leaf boxes are the union of
+        // (clamping is monotone, so it keeps the containment)
+        let lim = f32x8::splat(crate::geometry::BOUNDS_LIMIT);
+        let clamp = |x: f32x8| x.fast_max(-lim).fast_min(lim);
         let own = [0, 1, 2].map(|a| {
             let (p, q, r) = (v[0][a], v[1][a], v[2][a]);
-            [p.fast_min(q).fast_min(r), p.fast_max(q).fast_max(r)]
+            [
+                clamp(p.fast_min(q).fast_min(r)),
+                clamp(p.fast_max(q).fast_max(r)),
+            ]
         });
         let own = [
             own[0][0], own[0][1], own[1][0], own[1][1], own[2][0], own[2][1],
@@ -668,5 +677,55 @@ mod tests {
         assert_eq!(boxes.leaf_lanes(&block(false), m, 0.5).bits(), 0);
         // a block of one binary leaf: the slot's box, already passed
         assert_eq!(boxes.leaf_lanes(&block(true), m, 0.5).bits(), 0b0111);
+    }
+
+    /// Checks on built trees that `leaf_lanes` keeps exactly the lanes of `m` that pass
+    /// their leaf box, for every real lane of every merged block, hit or not; returns
+    /// how many blocks it checked.
+    fn leaf_lanes_match_leaf_boxes(bvh: &Bvh, rays: &[Ray1]) -> usize {
+        let mut merged = 0;
+        for r in rays {
+            let boxes = BoxRay::new(r);
+            for b in bvh.wide.blocks.iter().filter(|b| !b.one_leaf) {
+                merged += 1;
+                let m = Mask8::from_bits((1u32 << b.count) - 1);
+                for t_max in [f32::INFINITY, 1.0, 0.25] {
+                    let want = m & boxes.test(&b.bounds, t_max).0;
+                    let got = boxes.leaf_lanes(b, m, t_max);
+                    assert_eq!(got.bits(), want.bits(), "{r:?} block {}", b.first);
+                }
+            }
+        }
+        merged
+    }
+
+    #[test]
+    fn leaf_lanes_equal_the_leaf_box_test_on_built_trees() {
+        use crate::bvh::bench::{incoherent_rays, torus};
+        use crate::geometry::PrimSet;
+        let bvh = Bvh::build(PrimSet::from_triangles(torus(40, 24)));
+        let set = incoherent_rays(300, 7);
+        let rays: Vec<Ray1> = (set.origin.iter().zip(&set.dir))
+            .map(|(&o, &d)| Ray1::new(o, d))
+            .collect();
+        assert!(leaf_lanes_match_leaf_boxes(&bvh, &rays) > 0);
+        // a triangle beyond ±BOUNDS_LIMIT (2^44), whose leaf box is clamped, merged with
+        // one near the origin; the ray meets the triangle past the clamped box
+        let (c, s) = (Vec3::new(2.0e13, 2.4e13, 0.0), 1.0e9);
+        let far = Triangle32 {
+            v: [
+                c + Vec3::new(s, -s, -s),
+                c + Vec3::new(-s, s, -s),
+                c + Vec3::new(0.0, 0.0, s),
+            ],
+        };
+        let near = Triangle32 {
+            v: flat(-1.0, 1.0, -1.0, 1.0)
+                .v
+                .map(|p| p + Vec3::new(0.0, 0.0, 5.0)),
+        };
+        let bvh = Bvh::build(PrimSet::from_triangles(vec![far, near]));
+        let r = Ray1::new(Vec3::ZERO, Vec3::new(1.0, 1.2, 0.0).normalize());
+        assert!(leaf_lanes_match_leaf_boxes(&bvh, &[r]) > 0);
     }
 }
