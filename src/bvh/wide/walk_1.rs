@@ -113,10 +113,10 @@ impl BoxRay {
     /// clamped to ±[`BOUNDS_LIMIT`](crate::geometry::BOUNDS_LIMIT) as the build clamps
     /// every primitive's box: a leaf box contains its triangles' clamped boxes (their
     /// union, rounded outward, `Aabb::outward`), and the slab test is monotone under
-    /// containment, so a lane
-    /// that passes its triangle's box passes its leaf box. Only a lane that misses its
-    /// triangle's box (a hit at the box's edge, within rounding) reads the leaf boxes,
-    /// three lines that the walk would otherwise fetch at nearly every hit.
+    /// containment, so a lane that passes its triangle's box passes its leaf box. Only a
+    /// lane that misses its triangle's box (a hit at the box's edge, within rounding)
+    /// reads the leaf boxes, three lines that the walk would otherwise fetch at nearly
+    /// every hit.
     #[inline(always)]
     fn leaf_lanes(&self, b: &TriBlock, m: Mask8, t_max: f32) -> Mask8 {
         if b.one_leaf {
