@@ -5,6 +5,12 @@
 //! Data flows one way: [`scene`] parses text into plain data, [`render`] turns a scene
 //! and a camera into a [`output::Framebuffer`], [`output`] writes it. See
 //! ARCHITECTURE.md.
+//!
+//! The module docs explain the code, private parts included: read them with
+//! `cargo doc --document-private-items`.
+
+// (public items' docs link to the private items they rely on)
+#![allow(rustdoc::private_intra_doc_links)]
 
 pub mod bvh;
 pub mod cache;

@@ -330,7 +330,7 @@ fn from_moved<L: simd::Lanes>(
 /// eight triangles, or eight or sixteen rays against one): edge functions, the sign
 /// rule, the distance compared without dividing and its rounding bound. `p`: the
 /// vertices translated to the ray origin, permuted, and sheared in x and y (z not yet
-/// scaled); `shear_z`: 1/d[kz]. Every width runs the same operations in the same order,
+/// scaled); `shear_z`: `1/d[kz]`. Every width runs the same operations in the same order,
 /// so a lane's answer does not depend on the width (`tests/lanes.rs`).
 #[inline(always)]
 pub(crate) fn sheared<L: simd::Lanes>(
@@ -411,9 +411,9 @@ fn sheared_x8(p: [[f32x8; 3]; 3], shear_z: f32x8, active: Mask8, t_max: f32x8) -
 /// One ray prepared for [`Triangle8`]: origin in the permuted frame and the shear, splatted.
 #[derive(Clone, Copy, Debug)]
 pub struct TriRay8 {
-    /// Origin components (o[kx], o[ky], o[kz]).
+    /// Origin components (`o[kx], o[ky], o[kz]`).
     pub origin: [f32x8; 3],
-    /// −d[kx]·s, −d[ky]·s, s with s = 1/d[kz].
+    /// `−d[kx]·s, −d[ky]·s, s` with `s = 1/d[kz]`.
     pub shear: [f32x8; 3],
     /// (kx, ky, kz): the axes read as x, y, z.
     pub axes: [usize; 3],

@@ -29,7 +29,7 @@ pub const fn gamma32(n: u32) -> f32 {
 pub const FAR_WIDEN: f32 = 1.0 + 2.0 * gamma32(3);
 
 /// Smallest |d| used for 1/d in the slab test: 2⁻¹⁰⁰, so that 1/d (±1.3e30) times a box
-/// face's gap of [`crate::bvh::node::FACE_GAP`] (2⁻⁵⁰) still passes every distance a
+/// face's gap of [`crate::math::aabb::FACE_GAP`] (2⁻⁵⁰) still passes every distance a
 /// ray goes in the tree (its bounds stop at 2⁴⁴). (1/d stays finite and a product
 /// with it can overflow only to ±∞: no t is NaN.)
 const MIN_DIR: f32 = 7.888_609e-31;
@@ -292,12 +292,13 @@ pub struct RayPacket8 {
     /// Lanes whose largest |dir| component is x (kz = 0), resp. y (kz = 1); else z.
     pub kz_x: Mask8,
     pub kz_y: Mask8,
-    /// Shear of the watertight test: −d[kx]·s, −d[ky]·s, s with s = 1/d[kz].
+    /// Shear of the watertight test: `−d[kx]·s, −d[ky]·s, s` with `s = 1/d[kz]`.
     pub shear: Vec3x8,
     /// The kz of every lane when they all share it (0, 1, 2), else 3: lets
     /// [`RayPacket8::permute`] move whole vectors instead of blending lane by lane.
     pub kz_all: u32,
-    /// Sign bits of lane `first_lane`'s direction (bit k: dir[k] < 0), for ordered traversal.
+    /// Sign bits of lane `first_lane`'s direction (bit k: `dir[k] < 0`), for ordered
+    /// traversal.
     pub octant: u32,
 }
 
@@ -365,7 +366,8 @@ impl RayPacket8 {
         Ray1::new(self.origin.lane(i), self.dir.lane(i))
     }
 
-    /// Permutes a vector per lane into the watertight test's frame: (v[kx], v[ky], v[kz]).
+    /// Permutes a vector per lane into the watertight test's frame:
+    /// `(v[kx], v[ky], v[kz])`.
     #[inline]
     pub fn permute(&self, v: Vec3x8) -> Vec3x8 {
         // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z)
@@ -421,7 +423,7 @@ pub struct Ray1 {
     pub inv_dir: Vec3,
     /// Axis of the largest |dir| component, and the two others (kx, ky) = (kz+1, kz+2) mod 3.
     pub kz: usize,
-    /// −d[kx]·s, −d[ky]·s, s with s = 1/d[kz] (the watertight test's shear).
+    /// `−d[kx]·s, −d[ky]·s, s` with `s = 1/d[kz]` (the watertight test's shear).
     pub shear: Vec3,
 }
 

@@ -1,7 +1,7 @@
 //! Renderers: they turn a [`Scene`] and a camera into a [`Framebuffer`] and know
 //! nothing of files or windows.
 //!
-//! - [`reference`]: f64, one ray at a time, every object tested. The oracle.
+//! - [`reference`](mod@reference): f64, one ray at a time, every object tested. The oracle.
 //! - [`packet`]: f32, 8-ray packets through a BVH. The fast path and the default.
 //! - [`frame`]: the one frame loop over a rectangle of pixels, which both run.
 //! - [`prepared`]: a profile applied to a scene, picking the renderer once.

@@ -12,6 +12,8 @@
 //! compiled on its own, without the AVX-512 of the function it sits in, and would call
 //! each 16-lane operation instead of inlining it. Functions marked
 //! `#[inline(always)]` do the same work.
+//!
+//! [`RayPacket8`]: crate::math::packet::RayPacket8
 
 use super::{LaneMask, Lanes};
 
@@ -24,14 +26,14 @@ pub struct RayLanes<L: Lanes> {
     /// Lanes whose largest |dir| component is x (kz = 0), resp. y (kz = 1); else z.
     pub kz_x: L::Mask,
     pub kz_y: L::Mask,
-    /// −d[kx]·s, −d[ky]·s, s with s = 1/d[kz].
+    /// `−d[kx]·s, −d[ky]·s, s` with `s = 1/d[kz]`.
     pub shear: [L; 3],
     /// The kz of every lane when they all share it (0, 1, 2), else 3.
     pub kz_all: u32,
 }
 
 impl<L: Lanes> RayLanes<L> {
-    /// `v` per lane in the watertight test's frame, (v[kx], v[ky], v[kz]), as
+    /// `v` per lane in the watertight test's frame, `(v[kx], v[ky], v[kz])`, as
     /// `RayPacket8::permute`.
     #[inline(always)]
     pub fn permute(&self, v: [L; 3]) -> [L; 3] {

@@ -287,6 +287,8 @@ fn entered_leaves<P: WidePacket>(
 /// A packet the frustum walks trace: eight lanes ([`RayPacket8`]) or sixteen
 /// ([`RayPacket16`], the `avx512` kernels). What differs between the widths is here;
 /// the walks are one code.
+///
+/// [`RayPacket16`]: crate::simd::packet::RayPacket16
 pub(crate) trait WidePacket {
     type L: simd::Lanes;
     type Hit;

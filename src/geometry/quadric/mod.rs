@@ -134,7 +134,7 @@ pub struct Quadric32 {
     /// when the box leaves an axis unclipped).
     pub ellipsoid: Option<Aabb>,
     /// Bounds of the surface inside a box that clips some axes, where the sections
-    /// across them are bounded ([`section_bounds`]: a cylinder cut across its axis).
+    /// across them are bounded (`bounds::section_bounds`: a cylinder cut across its axis).
     pub section: Option<Aabb>,
 }
 

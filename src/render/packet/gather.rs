@@ -92,6 +92,9 @@ impl PacketRenderer {
     /// otherwise lanes that share a primitive (most of a coherent packet) take its surface
     /// in SIMD ([`PrimSet::surface_x8`]), a lone lane its own ([`PrimSet::surface_1`]),
     /// and the material is read per lane.
+    ///
+    /// [`PrimSet::surface_x8`]: crate::geometry::PrimSet::surface_x8
+    /// [`PrimSet::surface_1`]: crate::geometry::PrimSet::surface_1
     fn gather_lanes(&self, r: &RayPacket8, hit: &HitPacket8, lanes: Mask8) -> Gathered {
         if let Some(g) = self.gather_triangles(r, hit, lanes) {
             return g;

@@ -20,6 +20,8 @@
 //!
 //! Non-glass surfaces add the caustic (`kd · c ⊙ E`, [`CausticMap::irradiance`]), whose
 //! photons this renderer traces through its own BVH ([`PhotonTracer`] below).
+//!
+//! [`CausticMap::irradiance`]: crate::render::caustic::CausticMap::irradiance
 
 use glam::{DVec3, Vec3};
 use wide::f32x8;

@@ -106,6 +106,8 @@ impl<S: Settings> Tracer<'_, S> {
     /// others one level deeper, nested.
     /// `first`: the packet's closest hits when they were found already (camera packets
     /// traced two at a time).
+    ///
+    /// [`glass`]: super::glass
     #[allow(clippy::too_many_arguments)]
     pub(super) fn trace_path(
         &self,
