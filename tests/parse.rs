@@ -764,6 +764,18 @@ fn wait_until_caught(pid: u32, signal: u32) {
     }
 }
 
+/// A command that runs `program` with SIGINT, SIGTERM and SIGHUP at their default
+/// action. A process inherits the signals its parent ignores, and a non-interactive
+/// shell starts its background jobs (`cmd &`, as CI runners may start the test run)
+/// with SIGINT ignored, which octaray rightly keeps ignored. GNU `env` resets them and
+/// execs `program` in the same process.
+#[cfg(target_os = "linux")]
+fn with_default_signals(program: impl AsRef<std::ffi::OsStr>) -> Command {
+    let mut command = Command::new("env");
+    command.arg("--default-signal=INT,TERM,HUP").arg(program);
+    command
+}
+
 /// An interrupted render (SIGINT, SIGTERM, SIGHUP) removes its temporary files and ends
 /// by the same signal, as if it had not been caught (a shell shows 130, 143, 129: the
 /// `ctrlc` handler used to exit 130 for all three); a signal the process was started
@@ -786,7 +798,7 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
         "1",
     ];
     for (name, signal) in [("INT", 2), ("TERM", 15), ("HUP", 1)] {
-        let mut child = Command::new(exe)
+        let mut child = with_default_signals(exe)
             .args(slow)
             .arg("-o")
             .arg(dir.join("x.bmp"))
@@ -811,7 +823,7 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
     }
     // started by nohup: SIGHUP is ignored, the render goes on and writes its image
     let kept = dir.join("kept.bmp");
-    let mut child = Command::new("nohup")
+    let mut child = with_default_signals("nohup")
         .arg(exe)
         .args([
             "render",
@@ -828,7 +840,7 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
         .stderr(Stdio::null())
         .spawn()
         .expect("nohup (coreutils) runs");
-    // nohup execs octaray: once SIGTERM is caught, octaray's start-up is done
+    // env execs nohup, which execs octaray: once SIGTERM is caught, octaray's start-up is done
     wait_until_caught(child.id(), 15);
     assert_ne!(
         signal_mask(child.id(), "SigIgn:") & 1,
