@@ -4,9 +4,12 @@
 //! `--record`, and bad input refused with exit code 2 and nothing written.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+
+use common::Scratch;
 use octaray::output::Framebuffer;
 use octaray::output::tile::read_meta;
 use octaray::scene::camera_path::read_camera_path;
@@ -21,11 +24,8 @@ fn scene(name: &str) -> String {
         .to_string()
 }
 
-fn dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("octaray-farm-{tag}-{}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
+fn dir(tag: &str) -> Scratch {
+    Scratch::new(&format!("farm-{tag}"))
 }
 
 fn run(args: &[&str]) -> Output {

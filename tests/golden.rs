@@ -215,9 +215,7 @@ fn run_default(dir: &Path) -> std::process::Output {
 /// Output_12.bmp, never touching an existing file, with no window.
 #[test]
 fn default_command_renders_the_given_scene_headless() {
-    let dir = std::env::temp_dir().join(format!("octaray-default-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::Scratch::new("default");
     let out = run_default(&dir);
     assert!(
         out.status.success(),

@@ -6,15 +6,14 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+mod common;
+
+use common::Scratch;
 use octaray::scene::parse::{MAX_TOKEN, parse_scene, parse_scene_file, parse_scene_reader};
 
-/// An empty directory of this test process (emptied first should an earlier run of
-/// this pid have left it).
-fn scratch_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("octaray-in-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// An empty directory of this test process, removed when dropped.
+fn scratch_dir(tag: &str) -> Scratch {
+    Scratch::new(&format!("in-{tag}"))
 }
 
 /// A valid five-token scene: level 1, 8 pixels, no objects, no lights of either kind.

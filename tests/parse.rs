@@ -4,16 +4,15 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+mod common;
+
+use common::{ChildGuard, Scratch};
 use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes, parse_scene_file};
 use octaray::scene::{Scene, Shape};
 
-/// An empty directory of this test process, `octaray-<tag>-<pid>` under the system's
-/// temporary directory (emptied first should an earlier run of this pid have left it).
-fn scratch_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("octaray-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// An empty directory of this test process, removed when dropped.
+fn scratch_dir(tag: &str) -> Scratch {
+    Scratch::new(tag)
 }
 
 /// A copy of the octaray binary in `dir` that any user may run (tests that run it as
@@ -644,14 +643,14 @@ fn a_limit_on_threads_renders_on_one_thread() {
         c.arg("--nproc=1");
         // (a uid of its own: the limit counts every process of the user, and the
         // sticky-directory test below runs octaray as `nobody` at the same time, which
-        // made this exec fail with EAGAIN in one CI run)
+        // made this exec fail with EAGAIN in one CI run; one per test process, so that
+        // two test runs on one machine do not share it either)
         if root {
-            c.args([
-                "setpriv",
-                "--reuid=64999",
-                "--regid=64999",
-                "--clear-groups",
-            ]);
+            let uid = 60000 + std::process::id() % 5000;
+            c.arg("setpriv")
+                .arg(format!("--reuid={uid}"))
+                .arg(format!("--regid={uid}"))
+                .arg("--clear-groups");
         }
         c.arg(&exe)
             .args(["render", "--size", "16"])
@@ -798,21 +797,24 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
         "1",
     ];
     for (name, signal) in [("INT", 2), ("TERM", 15), ("HUP", 1)] {
-        let mut child = with_default_signals(exe)
-            .args(slow)
-            .arg("-o")
-            .arg(dir.join("x.bmp"))
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        wait_until_caught(child.id(), signal);
+        // (stopped when the test fails before it ends)
+        let mut child = ChildGuard(
+            with_default_signals(exe)
+                .args(slow)
+                .arg("-o")
+                .arg(dir.join("x.bmp"))
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
+        wait_until_caught(child.0.id(), signal);
         let sent = Command::new("kill")
             .arg(format!("-{name}"))
-            .arg(child.id().to_string())
+            .arg(child.0.id().to_string())
             .status()
             .unwrap();
         assert!(sent.success());
-        let status = child.wait().unwrap();
+        let status = child.0.wait().unwrap();
         assert_eq!(
             status.signal(),
             Some(signal as i32),
@@ -840,7 +842,8 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
         .stderr(Stdio::null())
         .spawn()
         .expect("nohup (coreutils) runs");
-    // env execs nohup, which execs octaray: once SIGTERM is caught, octaray's start-up is done
+    // env execs nohup, which execs octaray: once SIGTERM is caught, octaray's start-up
+    // is done
     wait_until_caught(child.id(), 15);
     assert_ne!(
         signal_mask(child.id(), "SigIgn:") & 1,

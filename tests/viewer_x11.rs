@@ -7,10 +7,13 @@
 use std::fs;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::ChildGuard;
 use octaray::output::Framebuffer;
 use octaray::scene::{Camera, Scene};
 use octaray::viewer::flycam::{self, Motion};
@@ -22,27 +25,6 @@ const PIXELS: u32 = 96;
 fn on_path(tool: &str) -> bool {
     std::env::var_os("PATH")
         .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(tool).is_file()))
-}
-
-/// Stops and reaps a child process of this test when dropped: SIGTERM first (so Xvfb
-/// removes its lock and socket files), SIGKILL if it is still there after 5 s.
-struct ChildGuard(Child);
-
-impl Drop for ChildGuard {
-    fn drop(&mut self) {
-        if let Ok(None) = self.0.try_wait() {
-            let _ = Command::new("kill").arg(self.0.id().to_string()).status();
-            let start = Instant::now();
-            while let Ok(None) = self.0.try_wait() {
-                if start.elapsed() > Duration::from_secs(5) {
-                    let _ = self.0.kill();
-                    break;
-                }
-                sleep(Duration::from_millis(20));
-            }
-        }
-        let _ = self.0.wait();
-    }
 }
 
 fn wait_for(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {

@@ -508,10 +508,26 @@ mod tests {
             .count()
     }
 
-    fn tempfile_dir(tag: &str) -> PathBuf {
+    /// An empty directory of this test process, removed when dropped.
+    fn tempfile_dir(tag: &str) -> TestDir {
         let d = std::env::temp_dir().join(format!("octaray-write-{tag}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
         fs::create_dir_all(&d).unwrap();
-        d
+        TestDir(d)
+    }
+
+    struct TestDir(PathBuf);
+
+    impl std::ops::Deref for TestDir {
+        type Target = Path;
+        fn deref(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl Drop for TestDir {
+        fn drop(&mut self) {
+            let _ = fs::remove_dir_all(&self.0);
+        }
     }
 }

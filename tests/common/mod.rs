@@ -1,6 +1,14 @@
-//! Shared helpers of the equivalence tests: seeded ray sets, generated scenes and
-//! image comparison with masks of legitimate differences.
+//! Shared helpers of the integration tests: seeded ray sets, generated scenes, image
+//! comparison with masks of legitimate differences, scratch directories and child
+//! processes that clean up after themselves.
 #![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::ops::Deref;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command};
+use std::thread::sleep;
+use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use octaray::scene::{Camera, Material, Object, PointLight, Scene, Shape, SpotLight};
@@ -144,4 +152,64 @@ pub fn pixels_off(a: &[[u8; 3]], b: &[[u8; 3]], tol: u8) -> usize {
 /// The primary-hit object of each pixel on the reference path (−1 background, −2 floor).
 pub fn reference_ids(scene: &Scene, camera: &Camera, size: u32) -> Vec<i64> {
     octaray::render::diff::reference_ids(scene, camera, size, size)
+}
+
+/// A directory of this test process, `octaray-<tag>-<pid>` under the system's temporary
+/// directory: emptied when made (an earlier run of this pid may have left it) and removed
+/// when dropped, also when the test fails, so that runs do not fill the disk.
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    pub fn new(tag: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("octaray-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+}
+
+impl Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<OsStr> for Scratch {
+    fn as_ref(&self) -> &OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Stops and reaps a child process of this test when dropped: SIGTERM first (so Xvfb
+/// removes its lock and socket files), SIGKILL if it is still there after 5 s.
+pub struct ChildGuard(pub Child);
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait() {
+            let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+            let start = Instant::now();
+            while let Ok(None) = self.0.try_wait() {
+                if start.elapsed() > Duration::from_secs(5) {
+                    let _ = self.0.kill();
+                    break;
+                }
+                sleep(Duration::from_millis(20));
+            }
+        }
+        let _ = self.0.wait();
+    }
 }
