@@ -625,8 +625,8 @@ impl Frame {
     }
 }
 
-/// Prepares `scene` at the camera's eye (the packet path's f32 frame is centred there, as
-/// in every one-process render) and renders the rectangles `rects` of the frame
+/// Prepares `scene` in the f32 frame `frame_origin` picks for the camera's eye (as every
+/// one-process render does, so that pieces equal the whole frame) and renders the rectangles `rects` of the frame
 /// `settings` describes.
 fn render_frame(
     scene: &octaray::scene::Scene,
@@ -635,7 +635,8 @@ fn render_frame(
     rects: &[PixelRect],
 ) -> Frame {
     let start = std::time::Instant::now();
-    let prepared = profile.prepare(scene, settings.camera.eye);
+    let origin = octaray::render::prepared::frame_origin(scene, settings.camera.eye);
+    let prepared = profile.prepare(scene, origin);
     let prepare_s = start.elapsed().as_secs_f64();
     let piece = octaray::farm::render_piece(&prepared, settings, rects);
     let render_s = start.elapsed().as_secs_f64() - prepare_s;

@@ -25,7 +25,7 @@ use crate::geometry::{PrimKind, PrimSet, prim_code};
 use crate::math::Aabb;
 use crate::scene::Scene;
 
-/// How far from the camera the f32 frame holds a scene: 2⁴² (4.4e12), where a product
+/// How far from its origin the f32 frame holds a scene: 2⁴² (4.4e12), where a product
 /// of three coordinates (2¹²⁶) still fits in f32 (below 2¹²⁸), as the watertight
 /// triangle test needs; spheres and quadrics need only squares.
 pub const F32_RANGE: f32 = 4_398_046_511_104.0;
@@ -83,7 +83,7 @@ impl Detail {
     }
 }
 
-/// The bounded primitive of `prims` (an f32 frame whose origin is the camera) reaching
+/// The bounded primitive of `prims` (in an f32 frame, at or near the camera) reaching
 /// farthest beyond [`F32_RANGE`], if one does, else the one with the smallest ratio of
 /// size to distance; `None` for a scene without bounded primitives.
 /// Unbounded quadrics have no size and the floor's is fixed: neither is a candidate.

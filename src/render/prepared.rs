@@ -13,9 +13,10 @@
 //! - `max_recursion`: caps the recursion level the renderer is built with.
 //! - `photons`: the caustic photon count (scenes with glass only).
 //!
-//! The packet path works in an f32 frame whose origin is set here explicitly (the
-//! camera's eye for a single render; [`Prepared::rebase`] moves it, as the viewer does
-//! when its camera has flown far from it).
+//! The packet path works in an f32 frame whose origin is set here explicitly
+//! ([`frame_origin`] for a single render: the camera's eye, or the world origin for a
+//! mesh whose vertices are f32 values; [`Prepared::rebase`] moves it, as the viewer
+//! does when its camera has flown far from it).
 
 use std::time::Instant;
 
@@ -27,7 +28,7 @@ use super::profile::{Profile, RenderPath};
 use super::reference::Reference;
 use super::{FrameRenderer, PixelRect, RenderSettings, Rendered};
 use crate::output::Framebuffer;
-use crate::scene::Scene;
+use crate::scene::{Scene, Shape};
 
 /// How far, in multiples of the view's nearest hit distance, the eye may move from the
 /// packet path's f32 frame origin before [`Prepared::follow`] re-centres the frame.
@@ -56,10 +57,59 @@ impl Profile {
         Prepared::new(self, scene, origin)
     }
 
-    /// Renders one frame (prepares the scene first, centred on the frame's eye; prefer
-    /// [`Profile::prepare`] for many frames of one scene).
+    /// Renders one frame (prepares the scene first, in the frame [`frame_origin`] picks
+    /// for its eye; prefer [`Profile::prepare`] for many frames of one scene).
     pub fn render(&self, scene: &Scene, settings: &RenderSettings) -> Rendered {
-        self.prepare(scene, settings.camera.eye).render(settings)
+        self.prepare(scene, frame_origin(scene, settings.camera.eye))
+            .render(settings)
+    }
+}
+
+/// The packet path's f32 frame origin for one view from `eye`.
+///
+/// The eye, so that what is near it keeps its detail however far the scene lies from
+/// the world origin; but the world origin for a scene with a mesh whose vertices are
+/// all f32 values (as OBJ files written from f32 data hold), where the eye lies within
+/// [`REBASE_RATIO`] times a lower bound of the nearest hit distance (the distance to
+/// the floor's plane and to every object's box) from the world origin. The mesh's
+/// vertices are then exact in the frame: re-rounded about the eye they tilt small
+/// triangles by up to about 1e-4 rad, which decides shadow edges and highlights
+/// differently from the reference. Points in view carry at most 1 + [`REBASE_RATIO`]
+/// times the rounding of a frame at the eye, the standard [`Prepared::follow`] keeps.
+/// Scenes with a quadric keep the eye (their reach is not measured here).
+pub fn frame_origin(scene: &Scene, eye: DVec3) -> DVec3 {
+    let f32_exact = |v: &[DVec3]| {
+        v.iter()
+            .all(|p| p.as_vec3().as_dvec3() == *p && p.is_finite())
+    };
+    let exact_mesh = scene
+        .objects
+        .iter()
+        .any(|o| matches!(&o.shape, Shape::Mesh(m) if f32_exact(m.vertices())));
+    if !exact_mesh {
+        return eye;
+    }
+    // distance from the eye to the box of `v` (0 inside it)
+    let box_distance = |v: &[DVec3]| {
+        let lo = v.iter().fold(DVec3::INFINITY, |a, &p| a.min(p));
+        let hi = v.iter().fold(DVec3::NEG_INFINITY, |a, &p| a.max(p));
+        (lo - eye).max(eye - hi).max(DVec3::ZERO).length()
+    };
+    let mut near = eye.z.abs();
+    for o in &scene.objects {
+        let d = match &o.shape {
+            Shape::Sphere { center, radius } => (center.distance(eye) - radius).max(0.0),
+            Shape::Triangle { v } => box_distance(v),
+            Shape::Prism { v, .. } => box_distance(v),
+            Shape::Mesh(m) => box_distance(m.vertices()),
+            Shape::Quadric(_) => return eye,
+        };
+        near = near.min(d);
+    }
+    if eye.length() <= REBASE_RATIO * near {
+        DVec3::ZERO
+    } else {
+        eye
     }
 }
 
@@ -238,4 +288,118 @@ pub fn upscale_bilinear(src: &Framebuffer, width: u32, height: u32) -> Framebuff
             .for_each(row);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::scene::obj::Mesh;
+    use crate::scene::{Material, Object, Quadric};
+
+    fn scene_with(shapes: Vec<Shape>) -> Scene {
+        let material = Material {
+            color: DVec3::ONE,
+            ka: 0.2,
+            kd: 0.5,
+            ks: 0.3,
+            kr: 0.0,
+            shine: 10.0,
+        };
+        Scene {
+            recursion_level: 1,
+            pixels: 8,
+            objects: shapes
+                .into_iter()
+                .map(|shape| Object { shape, material })
+                .collect(),
+            point_lights: vec![],
+            spot_lights: vec![],
+        }
+    }
+
+    /// A mesh of one triangle at `at`, sides `side`.
+    fn mesh(at: DVec3, side: f64) -> Shape {
+        let v = vec![at, at + DVec3::X * side, at + DVec3::Y * side];
+        Shape::Mesh(Arc::new(Mesh::new(v, vec![[0, 1, 2]])))
+    }
+
+    const EYE: DVec3 = DVec3::new(0.0, -3.0, 2.0);
+
+    #[test]
+    fn a_mesh_of_f32_vertices_in_view_of_the_world_origin_is_framed_there() {
+        let s = scene_with(vec![mesh(DVec3::new(-0.5, 0.0, 0.25), 1.0)]);
+        assert_eq!(frame_origin(&s, EYE), DVec3::ZERO);
+        // with other kinds beside it
+        let s = scene_with(vec![
+            mesh(DVec3::new(-0.5, 0.0, 0.25), 1.0),
+            Shape::Sphere {
+                center: DVec3::new(1.0, 1.0, 1.0),
+                radius: 0.5,
+            },
+            Shape::Triangle {
+                v: [DVec3::ZERO, DVec3::X, DVec3::Y],
+            },
+        ]);
+        assert_eq!(frame_origin(&s, EYE), DVec3::ZERO);
+    }
+
+    #[test]
+    fn every_other_view_is_framed_at_the_eye() {
+        let at = DVec3::new(-0.5, 0.0, 0.25);
+        // no mesh
+        let triangle = Shape::Triangle {
+            v: [at, at + DVec3::X, at + DVec3::Y],
+        };
+        assert_eq!(frame_origin(&scene_with(vec![triangle]), EYE), EYE);
+        // vertices that are not f32 values (0.1 is not)
+        assert_eq!(
+            frame_origin(&scene_with(vec![mesh(DVec3::splat(0.1), 1.0)]), EYE),
+            EYE
+        );
+        // a mesh far from the world origin, seen from near it
+        let far = DVec3::new(4096.0, 0.0, 0.0);
+        assert_eq!(
+            frame_origin(&scene_with(vec![mesh(far + at, 1.0)]), far + EYE),
+            far + EYE
+        );
+        // the eye close to the floor's plane (something may be hit within 0.125)
+        let low = DVec3::new(0.0, -3.0, 0.125);
+        assert_eq!(frame_origin(&scene_with(vec![mesh(at, 1.0)]), low), low);
+        // the eye close to a sphere
+        let sphere = Shape::Sphere {
+            center: EYE + DVec3::X,
+            radius: 0.875,
+        };
+        assert_eq!(
+            frame_origin(&scene_with(vec![mesh(at, 1.0), sphere]), EYE),
+            EYE
+        );
+        // a quadric
+        let quadric = Shape::Quadric(Quadric {
+            coef: [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0],
+            min: DVec3::ZERO,
+            size: DVec3::ZERO,
+        });
+        assert_eq!(
+            frame_origin(&scene_with(vec![mesh(at, 1.0), quadric]), EYE),
+            EYE
+        );
+    }
+
+    /// `Profile::render` prepares the packet path in that frame.
+    #[test]
+    fn a_single_render_is_prepared_in_that_frame() {
+        let s = scene_with(vec![mesh(DVec3::new(-20.0, -20.0, 5.0), 40.0)]);
+        let settings = RenderSettings::square(32);
+        let origin = frame_origin(&s, settings.camera.eye);
+        assert_eq!(origin, DVec3::ZERO);
+        let profile = Profile::by_name(Profile::default_name()).unwrap();
+        let prepared = profile.prepare(&s, origin);
+        assert_eq!(prepared.origin(), Some(origin));
+        let image = profile.render(&s, &settings).image;
+        assert!(image.pixels.iter().any(|p| *p != [0, 0, 0]));
+        assert_eq!(image, prepared.render(&settings).image);
+    }
 }

@@ -270,7 +270,7 @@ struct View<'a> {
 impl<'a> View<'a> {
     fn new(profile: &Profile, scene: &'a Scene, eye: DVec3) -> View<'a> {
         View {
-            prepared: profile.prepare(scene, eye),
+            prepared: profile.prepare(scene, crate::render::prepared::frame_origin(scene, eye)),
             nearest: f64::INFINITY,
         }
     }

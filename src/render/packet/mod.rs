@@ -6,8 +6,9 @@
 //! reference code.
 //!
 //! - [`PacketRenderer`]: the scene in one f32 frame whose origin is set explicitly (the
-//!   camera's eye; f64 subtraction, then rounding), so scenes far from the world origin
-//!   keep their detail; built once from immutable [`PacketOptions`].
+//!   camera's eye, or the world origin where a mesh's f32 vertices then stay exact:
+//!   [`super::prepared::frame_origin`]; f64 subtraction, then rounding), so scenes far
+//!   from the world origin keep their detail; built once from immutable [`PacketOptions`].
 //! - [`PacketRenderer::frames`] picks the compiled instance of the tracer for those
 //!   options and the scene's glass, once per frame ([`Settings`]).
 //! - `camera`: camera packets of 4 × 2 samples for the frame loop; `path`: the mirror
