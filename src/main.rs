@@ -626,8 +626,8 @@ impl Frame {
 }
 
 /// Prepares `scene` in the f32 frame `frame_origin` picks for the camera's eye (as every
-/// one-process render does, so that pieces equal the whole frame) and renders the rectangles `rects` of the frame
-/// `settings` describes.
+/// one-process render does, so that pieces equal the whole frame) and renders the
+/// rectangles `rects` of the frame `settings` describes.
 fn render_frame(
     scene: &octaray::scene::Scene,
     profile: &Profile,

@@ -101,7 +101,6 @@ fn tiles_equal_the_whole(tag: &str, render_args: &[&str], n: u32) {
     let bmp = d.join("assembled.bmp");
     ok(&[&["assemble"][..], &tile_args, &["-o", p(&bmp)]].concat());
     assert_eq!(Framebuffer::load(&bmp).unwrap(), w, "{tag}: BMP");
-    let _ = fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -179,7 +178,6 @@ fn crops_assemble_with_tiles_and_record_their_rectangles() {
     let names: Vec<&str> = files.iter().map(|f| p(f)).collect();
     ok(&[&["assemble"][..], &names, &["-o", p(&out)]].concat());
     assert_eq!(fs::read(&out).unwrap(), fs::read(&whole).unwrap());
-    let _ = fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -209,7 +207,6 @@ fn bad_pieces_are_refused_and_nothing_is_written() {
         fs::read_dir(&d).unwrap().next().is_none(),
         "something was written"
     );
-    let _ = fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -306,7 +303,6 @@ fn assemble_refuses_missing_overlapping_and_foreign_tiles_by_name() {
     assert!(!out.exists(), "an output was written");
     // and the three tiles do make the frame
     ok(&["assemble", p(&t2), p(&t0), p(&t1), "-o", o]);
-    let _ = fs::remove_dir_all(&d);
 }
 
 /// `x,y,z` as the command line takes it, exactly.
@@ -384,7 +380,6 @@ fn camera_path_frames_equal_one_process_renders() {
             fs::read(d.join("f_0001.png")).unwrap()
         );
     }
-    let _ = fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -431,7 +426,6 @@ fn skip_existing_leaves_finished_frames_alone() {
         p(&single),
     ]);
     assert_eq!(fs::read(&single).unwrap(), b"done");
-    let _ = fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -519,7 +513,6 @@ fn bad_paths_ranges_and_patterns_are_refused_and_nothing_is_written() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(names.len(), 3, "something was written: {names:?}");
-    let _ = fs::remove_dir_all(&d);
 }
 
 /// `view --frames N --record PATH` records the scripted flight's cameras (appending);
@@ -582,5 +575,4 @@ fn the_viewer_records_the_flight_it_draws() {
     ]);
     assert!(fs::read(d.join("f_4.png")).unwrap() == fs::read(&one).unwrap());
     refused(&["view", "--frames", "1", "--record", p(&d)], "--record");
-    let _ = fs::remove_dir_all(&d);
 }

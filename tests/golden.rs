@@ -261,9 +261,7 @@ fn cli_render(dir: &Path, args: &[&str], out: &str) -> Framebuffer {
 /// fast path, and the two paths agree.
 #[test]
 fn cli_renders_non_square_frames() {
-    let dir = std::env::temp_dir().join(format!("octaray-wxh-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::Scratch::new("wxh");
     for profile in ["reference", "fast"] {
         let p = ["--profile", profile];
         let wide = cli_render(&dir, &[&p[..], &["--size", "96x48"]].concat(), "w.png");
@@ -289,5 +287,4 @@ fn cli_renders_non_square_frames() {
     let f = cli_render(&dir, &["--profile", "fast", "--size", "96x48"], "f.png");
     let off = common::pixels_off(&r.pixels, &f.pixels, 2);
     assert!(off * 100 <= r.pixels.len(), "{off} pixels off by > 2/255");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -10,11 +10,6 @@ use common::{ChildGuard, Scratch};
 use octaray::scene::parse::{ParseError, parse_scene, parse_scene_bytes, parse_scene_file};
 use octaray::scene::{Scene, Shape};
 
-/// An empty directory of this test process, removed when dropped.
-fn scratch_dir(tag: &str) -> Scratch {
-    Scratch::new(tag)
-}
-
 /// A copy of the octaray binary in `dir` that any user may run (tests that run it as
 /// another user: the build directory may not be open to others). Copied by `cp`, not
 /// in this process: a write descriptor open here while another test thread forks a
@@ -278,7 +273,7 @@ fn pixels_above_the_render_limit_load_but_render_only_smaller() {
     assert_eq!((e.line, e.col, e.field.as_str()), (2, 1, "pixels"));
     assert!(e.message.contains("--size"), "{e}");
     assert!(parse_scene(BASE, "t.txt").unwrap().too_large.is_none());
-    let dir = scratch_dir("big");
+    let dir = Scratch::new("big");
     let file = dir.join("big.txt");
     std::fs::write(&file, &big).unwrap();
     let run = |extra: &[&str]| {
@@ -492,7 +487,7 @@ fn every_committed_scene_parses() {
 /// The binary: bad input exits 2 with file:line:col on stderr and writes nothing.
 #[test]
 fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
-    let dir = scratch_dir("cli-bad");
+    let dir = Scratch::new("cli-bad");
     let scene = dir.join("bad.txt");
     std::fs::write(&scene, with_line(6, "-5")).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_octaray"))
@@ -533,7 +528,7 @@ fn cli_rejects_bad_scene_with_exit_2_and_no_output() {
 #[cfg(unix)]
 #[test]
 fn special_files_and_bad_outputs_are_refused_up_front() {
-    let dir = scratch_dir("special");
+    let dir = Scratch::new("special");
     let run = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_octaray"))
             .current_dir(&dir)
@@ -594,7 +589,7 @@ fn special_files_and_bad_outputs_are_refused_up_front() {
 #[test]
 fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
     use octaray::scene::mesh_cache::load_obj;
-    let dir = scratch_dir("objbom");
+    let dir = Scratch::new("objbom");
     let body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     let bom = dir.join("bom.obj");
     std::fs::write(&bom, [&b"\xef\xbb\xbf"[..], body].concat()).unwrap();
@@ -628,7 +623,7 @@ fn obj_files_with_a_bom_or_stray_bytes_load_whole() {
 #[test]
 fn a_limit_on_threads_renders_on_one_thread() {
     use std::os::unix::fs::PermissionsExt;
-    let dir = scratch_dir("nproc");
+    let dir = Scratch::new("nproc");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
     let exe = exe_for_anyone(&dir);
     let free = Command::new(&exe)
@@ -684,7 +679,6 @@ fn a_limit_on_threads_renders_on_one_thread() {
     assert!(stderr.contains("cannot start 2 worker threads"), "{stderr}");
     assert!(!stderr.contains("ran on one thread"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `-o` onto a file that may be written but not replaced (another user's file in a
@@ -698,7 +692,7 @@ fn files_that_cannot_be_replaced_are_written_in_place() {
     if Command::new("id").arg("-u").output().unwrap().stdout != b"0\n" {
         return;
     }
-    let dir = scratch_dir("sticky");
+    let dir = Scratch::new("sticky");
     std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o1777)).unwrap();
     let exe = exe_for_anyone(&dir);
     let free = dir.join("free.bmp");
@@ -736,7 +730,6 @@ fn files_that_cannot_be_replaced_are_written_in_place() {
         })
         .count();
     assert_eq!(leftovers, 0);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The bits of a signal mask (`SigCgt`: caught, `SigIgn`: ignored) of a running process.
@@ -784,7 +777,7 @@ fn with_default_signals(program: impl AsRef<std::ffi::OsStr>) -> Command {
 fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
-    let dir = scratch_dir("signals");
+    let dir = Scratch::new("signals");
     let exe = env!("CARGO_BIN_EXE_octaray");
     // (a render of seconds, ended within milliseconds of its start)
     let slow = [
@@ -863,5 +856,4 @@ fn interrupted_renders_end_by_their_signal_and_ignored_ones_stay_ignored() {
     let status = child.wait().unwrap();
     assert!(status.success(), "{status:?}");
     assert!(kept.is_file());
-    let _ = std::fs::remove_dir_all(&dir);
 }

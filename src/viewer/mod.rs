@@ -53,7 +53,7 @@ use glam::DVec3;
 use minifb::{Key, Window, WindowOptions};
 
 use crate::output::{Framebuffer, write_next_output};
-use crate::render::prepared::Prepared;
+use crate::render::prepared::{Prepared, frame_origin};
 use crate::render::profile::Profile;
 use crate::render::{RenderSettings, RenderStats};
 use crate::scene::{Camera, Scene};
@@ -270,7 +270,7 @@ struct View<'a> {
 impl<'a> View<'a> {
     fn new(profile: &Profile, scene: &'a Scene, eye: DVec3) -> View<'a> {
         View {
-            prepared: profile.prepare(scene, crate::render::prepared::frame_origin(scene, eye)),
+            prepared: profile.prepare(scene, frame_origin(scene, eye)),
             nearest: f64::INFINITY,
         }
     }
