@@ -9,19 +9,24 @@
 //! ...) is ignored. A line ends at LF, CRLF or a lone CR, as in scene files. Errors
 //! name the file and line.
 //!
-//! A large file is parsed in pieces of whole lines on the worker threads, each piece
-//! on its own (indices that count back are resolved, and every index checked, when
-//! the pieces are joined); any error sends the file through one serial pass, which
-//! finds the first error in file order with its line. Both passes read the same tokens
+//! A file is read a run of whole lines at a time (about 1 MiB; never held whole in
+//! memory). A large regular file is read in runs of 8 MiB, each cut into pieces of
+//! whole lines parsed on the worker threads, each piece on its own (indices that
+//! count back are resolved, and every index checked, when the pieces are joined);
+//! any error sends the file through one serial pass, which finds the first error in
+//! file order with its line. Both passes read the same tokens
 //! the same way: coordinates with `str::parse::<f64>`, words split at Unicode
 //! whitespace (on an ASCII line, at its ASCII whitespace: the same words).
 
 use std::fmt;
+use std::io::{self, Read};
 use std::path::Path;
 use std::sync::OnceLock;
 
 use glam::DVec3;
 use rayon::prelude::*;
+
+use super::input::Limited;
 
 /// Triangles over a shared vertex array, f64 like the rest of the scene.
 ///
@@ -116,18 +121,31 @@ impl fmt::Display for ObjError {
 
 impl std::error::Error for ObjError {}
 
-/// Reads and parses an OBJ file (no cache: [`super::mesh_cache::load_obj`]).
+/// Reads and parses an OBJ file (no cache: [`super::mesh_cache::load_obj`]), a run of
+/// whole lines at a time ([`runs`]): a file is never held whole in memory.
 pub fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
     let name = path.display().to_string();
-    let bytes = super::read_input(path).map_err(|e| ObjError {
+    // the input, and its length when it is a regular file
+    let open = || {
+        let file = super::input::open_input(path)?;
+        let meta = file.metadata()?;
+        Ok((Limited::new(file), meta.is_file().then_some(meta.len())))
+    };
+    let cannot = |e: io::Error| ObjError {
         file: name.clone(),
         line: 0,
         message: format!("cannot read: {e}"),
-    })?;
-    // a byte-order mark would glue itself to the first keyword (and drop a `v` line,
-    // shifting every index after it)
-    let text = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
-    parse_obj_bytes(text, &name)
+    };
+    let (input, len) = open().map_err(cannot)?;
+    // a pipe cannot be read twice, so only a regular file may take the pieces' pass
+    // first (on any error its serial pass reads the file again)
+    if len.is_some_and(|n| n >= PARALLEL_BYTES as u64) && crate::parallel::threads() > 1 {
+        if let Some(mesh) = parse_parallel(input, true).map_err(cannot)? {
+            return Ok(mesh);
+        }
+        return parse_serial(open().map_err(cannot)?.0, true, &name);
+    }
+    parse_serial(input, true, &name)
 }
 
 /// Parses OBJ text; `file` is only used in messages.
@@ -139,37 +157,150 @@ pub fn parse_obj(text: &str, file: &str) -> Result<Mesh, ObjError> {
 const PARALLEL_BYTES: usize = 1 << 20;
 /// Bytes per piece, about (a few per thread, so that the threads finish together).
 const PIECE_BYTES: usize = 1 << 20;
+/// Bytes read at a time for the serial pass: a buffer that stays in the cache. (Read
+/// whole into fresh pages first, the 51 MB torus of `benches/` took about half as long
+/// to read as to parse.)
+const SERIAL_RUN_BYTES: usize = 1 << 20;
+/// Bytes read at a time for the pieces' pass, each run cut into pieces.
+const PARALLEL_RUN_BYTES: usize = 8 << 20;
 
 /// Parses OBJ bytes; `file` is only used in messages. Invalid UTF-8 (a cp1252 byte)
 /// is harmless in a comment or a line the format ignores: a line holding any is
 /// decoded lossily, so a bad byte inside a `v` or `f` line makes it fail with its line.
 pub fn parse_obj_bytes(text: &[u8], file: &str) -> Result<Mesh, ObjError> {
+    let read = |e: io::Error| ObjError {
+        file: file.to_string(),
+        line: 0,
+        message: format!("cannot read: {e}"),
+    };
     if text.len() >= PARALLEL_BYTES
         && crate::parallel::threads() > 1
-        && let Some(mesh) = parse_pieces(text)
+        && let Some(mesh) = parse_parallel(text, false).map_err(read)?
     {
         return Ok(mesh);
     }
-    let part = Part::parse(text, file, true)?;
+    parse_serial(text, false, file)
+}
+
+/// The serial pass: one [`Part`] fed the runs of `input` in file order, every index
+/// checked at its line. `bom`: a leading byte-order mark is skipped.
+fn parse_serial(input: impl Read, bom: bool, file: &str) -> Result<Mesh, ObjError> {
+    serial_runs(input, SERIAL_RUN_BYTES, bom, file)
+}
+
+/// [`parse_serial`] in runs of about `chunk` bytes.
+fn serial_runs(input: impl Read, chunk: usize, bom: bool, file: &str) -> Result<Mesh, ObjError> {
+    let mut part = Part::new(true);
+    runs(input, chunk, bom, |text| {
+        part.feed(text, file).map_err(Stop::Obj)
+    })
+    .map_err(|stop| match stop {
+        Stop::Obj(e) => e,
+        Stop::Read(e) => ObjError {
+            file: file.to_string(),
+            line: 0,
+            message: format!("cannot read: {e}"),
+        },
+        Stop::Pieces => unreachable!("the serial pass has no pieces"),
+    })?;
     Ok(Mesh::new(part.vertices, part.triangles))
 }
 
-/// The pieces of `text` parsed in parallel and joined; `None` on any error (the
+/// The pieces' pass: each run of `input` cut into pieces parsed on the worker
+/// threads and joined to the mesh so far; `Ok(None)` on any error in the text (the
 /// serial pass then names the first).
-fn parse_pieces(text: &[u8]) -> Option<Mesh> {
+fn parse_parallel(input: impl Read, bom: bool) -> io::Result<Option<Mesh>> {
+    parallel_runs(input, PARALLEL_RUN_BYTES, bom)
+}
+
+/// [`parse_parallel`] in runs of about `chunk` bytes.
+fn parallel_runs(input: impl Read, chunk: usize, bom: bool) -> io::Result<Option<Mesh>> {
+    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+    let done = runs(input, chunk, bom, |text| {
+        let parts = pieces(text).ok_or(Stop::Pieces)?;
+        join(parts, &mut vertices, &mut triangles).ok_or(Stop::Pieces)
+    });
+    match done {
+        Ok(()) => Ok(Some(Mesh::new(vertices, triangles))),
+        Err(Stop::Pieces) => Ok(None),
+        Err(Stop::Read(e)) => Err(e),
+        Err(Stop::Obj(_)) => unreachable!("pieces report no line"),
+    }
+}
+
+/// Why [`runs`] stopped early.
+enum Stop {
+    /// The input could not be read.
+    Read(io::Error),
+    /// The serial pass's first error.
+    Obj(ObjError),
+    /// Some piece had an error.
+    Pieces,
+}
+
+/// Reads `input` about `chunk` bytes at a time and hands `f` each run of whole lines
+/// (a line longer than `chunk` is read on until it ends), in order, the last one at
+/// the end of the input whatever its end; a leading byte-order mark skipped when
+/// `bom`. The runs' lines are the input's lines, each whole in one run.
+fn runs(
+    mut input: impl Read,
+    chunk: usize,
+    bom: bool,
+    mut f: impl FnMut(&[u8]) -> Result<(), Stop>,
+) -> Result<(), Stop> {
+    debug_assert!(chunk >= 4, "a run holds a byte-order mark");
+    let mut buf = Vec::with_capacity(chunk);
+    let mut first = true;
+    loop {
+        let got = (&mut input)
+            .take(chunk as u64)
+            .read_to_end(&mut buf)
+            .map_err(Stop::Read)?;
+        let end = got < chunk;
+        if std::mem::take(&mut first) && bom && buf.starts_with(b"\xef\xbb\xbf") {
+            // it would glue itself to the first keyword (and drop a `v` line,
+            // shifting every index after it)
+            buf.drain(..3);
+        }
+        let cut = if end { buf.len() } else { whole_lines(&buf) };
+        if cut > 0 {
+            f(&buf[..cut])?;
+            buf.drain(..cut);
+        }
+        if end {
+            return Ok(());
+        }
+    }
+}
+
+/// The length of the longest prefix of `text` made of whole lines (see [`line_end`])
+/// when more bytes may follow: up to its last line end, but a CR at the very end may
+/// be the first half of a CRLF, so its line waits for the next byte.
+fn whole_lines(text: &[u8]) -> usize {
+    let known = text.len() - (text.last() == Some(&b'\r')) as usize;
+    // a CR before `known` is followed by a byte that is no LF (the last line end
+    // found), so it ends its line alone
+    text[..known]
+        .iter()
+        .rposition(|&b| b == b'\n' || b == b'\r')
+        .map_or(0, |k| k + 1)
+}
+
+/// The pieces of `text` parsed in parallel, in order; `None` on any error.
+fn pieces(text: &[u8]) -> Option<Vec<Part>> {
     let pieces = (text.len() / PIECE_BYTES).clamp(2, 256);
     let mut cuts: Vec<usize> = (0..=pieces)
         .map(|k| next_line_start(text, k * text.len() / pieces))
         .collect();
     cuts.dedup();
-    let parts: Vec<Part> = cuts
-        .par_windows(2)
+    cuts.par_windows(2)
         .map(|w| Part::parse(&text[w[0]..w[1]], "", false).ok())
-        .collect::<Option<_>>()?;
-    let nv = parts.iter().map(|p| p.vertices.len()).sum();
-    let nt = parts.iter().map(|p| p.triangles.len()).sum();
-    let mut vertices = Vec::with_capacity(nv);
-    let mut triangles = Vec::with_capacity(nt);
+        .collect()
+}
+
+/// Appends `parts` (parsed in order, unchecked) to the mesh so far, resolving the
+/// indices that count back; `None` when an index lies out of range.
+fn join(parts: Vec<Part>, vertices: &mut Vec<DVec3>, triangles: &mut Vec<[u32; 3]>) -> Option<()> {
     for p in parts {
         let before = vertices.len();
         if p.need > before as i64 {
@@ -183,6 +314,15 @@ fn parse_pieces(text: &[u8]) -> Option<Mesh> {
         }
         vertices.extend_from_slice(&p.vertices);
     }
+    Some(())
+}
+
+/// The pieces of `text` parsed in parallel and joined; `None` on any error (the
+/// serial pass then names the first).
+#[cfg(test)]
+fn parse_pieces(text: &[u8]) -> Option<Mesh> {
+    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+    join(pieces(text)?, &mut vertices, &mut triangles)?;
     Some(Mesh::new(vertices, triangles))
 }
 
@@ -266,38 +406,52 @@ struct Part {
     face: Vec<(u32, bool)>,
     /// Whether the part starts the file: indices are checked (and resolved) at once.
     checked: bool,
+    /// Lines read so far (the runs of the serial pass continue the count).
+    lines: usize,
 }
 
 impl Part {
-    /// Parses the lines of `text`; when `checked`, `text` is the whole file and every
-    /// index is checked at its line, else the checks wait for the join ([`Part::need`]).
-    fn parse(text: &[u8], file: &str, checked: bool) -> Result<Part, ObjError> {
-        let mut part = Part {
+    /// An empty part; when `checked`, it starts the file and every index is checked at
+    /// its line, else the checks wait for the join ([`Part::need`]).
+    fn new(checked: bool) -> Part {
+        Part {
             checked,
             ..Part::default()
-        };
-        let (mut at, mut n) = (0, 0);
+        }
+    }
+
+    /// Parses the lines of `text` (whole lines: see [`line_end`]).
+    fn parse(text: &[u8], file: &str, checked: bool) -> Result<Part, ObjError> {
+        let mut part = Part::new(checked);
+        part.feed(text, file)?;
+        Ok(part)
+    }
+
+    /// Parses the whole lines of `text`, the next ones of the file after those read so
+    /// far; errors name the line in the file.
+    fn feed(&mut self, text: &[u8], file: &str) -> Result<(), ObjError> {
+        let mut at = 0;
         while at < text.len() {
-            n += 1;
+            self.lines += 1;
             let (end, next, is_ascii) = line_end(text, at);
             // an ASCII line split at ASCII whitespace is split as `split_whitespace`
             // splits it
             let read = if is_ascii {
-                match part.ascii_face(&text[..end], at) {
+                match self.ascii_face(&text[..end], at) {
                     Some(read) => read,
-                    None => part.words(AsciiWords { text, at, end }),
+                    None => self.words(AsciiWords { text, at, end }),
                 }
             } else {
-                part.words(String::from_utf8_lossy(&text[at..end]).split_whitespace())
+                self.words(String::from_utf8_lossy(&text[at..end]).split_whitespace())
             };
             read.map_err(|message| ObjError {
                 file: file.to_string(),
-                line: n,
+                line: self.lines,
                 message,
             })?;
             at = next;
         }
-        Ok(part)
+        Ok(())
     }
 
     /// One line (without its end) split into words by `it`.
@@ -876,6 +1030,58 @@ mod tests {
                 _ => assert_eq!(got, want, "case {case}: {}", String::from_utf8_lossy(&text)),
             }
         }
+    }
+
+    /// Read in runs of any size (a few bytes: lines longer than a run, a CR at a run's
+    /// end before its LF or not, a byte-order mark in the first run), both passes give
+    /// the mesh or the first error of the whole text at once.
+    #[test]
+    fn runs_of_any_size_parse_as_the_whole_text() {
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let mut r = Rng(13);
+        for case in 0..300 {
+            let lines = 1 + r.below(40) as usize;
+            let mut text = random_obj(&mut r, lines, case % 3 == 2);
+            let bom = case % 5 == 0;
+            if bom {
+                text.splice(0..0, *b"\xef\xbb\xbf");
+            }
+            let whole = Part::parse(
+                text.strip_prefix(b"\xef\xbb\xbf")
+                    .filter(|_| bom)
+                    .unwrap_or(&text),
+                "r.obj",
+                true,
+            )
+            .map(|p| Mesh::new(p.vertices, p.triangles));
+            for chunk in [4, 5, 7, 16, 61, 1000] {
+                let serial = serial_runs(&text[..], chunk, bom, "r.obj");
+                assert_eq!(serial, whole, "case {case}, runs of {chunk}");
+                let pieces = two.install(|| parallel_runs(&text[..], chunk, bom).unwrap());
+                match &whole {
+                    Ok(mesh) => {
+                        assert_eq!(pieces.as_ref(), Some(mesh), "case {case}, runs of {chunk}")
+                    }
+                    Err(_) => assert_eq!(pieces, None, "case {case}, runs of {chunk}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_run_ends_after_its_last_whole_line() {
+        assert_eq!(whole_lines(b""), 0);
+        assert_eq!(whole_lines(b"v 1 2"), 0);
+        assert_eq!(whole_lines(b"v 1\nv 2"), 4);
+        assert_eq!(whole_lines(b"v 1\r\nv 2\r\n"), 10);
+        // a lone CR ends its line; one at the very end may be half a CRLF
+        assert_eq!(whole_lines(b"v 1\rv 2"), 4);
+        assert_eq!(whole_lines(b"v 1\nv 2\r"), 4);
+        assert_eq!(whole_lines(b"\r"), 0);
+        assert_eq!(whole_lines(b"\r\r"), 1);
     }
 
     /// A file large enough to be parsed in pieces gives the serial pass's mesh, and
