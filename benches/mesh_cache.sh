@@ -2,7 +2,7 @@
 # The mesh cache: OBJ load time with the cache off, cold (parse the text, write the cache) and warm (read the
 # cache), for torus100k and torus1m on 1 and 2 threads, in interleaved rounds; prints medians.
 # Loader alone: bench-trace's load_ms (OCTARAY_BENCH_ONLY=none/none: load and build, no tracing). Whole process:
-# `octaray render` of a scene holding the mesh at 32 x 32 (load, BVH build, render), wall seconds and peak RSS
+# `octaray render` of a scene holding the mesh at 8 x 8 (load, BVH build, render), wall seconds and peak RSS
 # from /usr/bin/time. The cache lives in a temporary XDG_CACHE_HOME, removed at the end.
 # usage: benches/mesh_cache.sh [ROUNDS] [PEER_DIR]   (default 5, /tmp/embree-peer: benches/embree/run.sh
 # writes the meshes to PEER_DIR/data)
