@@ -9,17 +9,17 @@
 //! ...) is ignored. A line ends at LF, CRLF or a lone CR, as in scene files. Errors
 //! name the file and line.
 //!
-//! A file is read a run of whole lines at a time (about 1 MiB; never held whole in
-//! memory). A large regular file is read in runs of 8 MiB, each cut into pieces of
-//! whole lines parsed on the worker threads, each piece on its own (indices that
-//! count back are resolved, and every index checked, when the pieces are joined);
-//! any error sends the file through one serial pass, which finds the first error in
-//! file order with its line. Both passes read the same tokens
-//! the same way: coordinates with `str::parse::<f64>`, words split at Unicode
+//! A file is read a run of whole lines at a time (about 1 MiB; held whole only as far
+//! as its longest line). A large regular file is read in runs of 4 MiB, each cut into
+//! pieces of whole lines parsed on the worker threads, each piece on its own (indices
+//! that count back are resolved, and every index checked, when the pieces are
+//! joined); any error sends the file through one serial pass, which finds the first
+//! error in file order with its line. Both passes read the same tokens the same way:
+//! coordinates with `str::parse::<f64>`, words split at Unicode
 //! whitespace (on an ASCII line, at its ASCII whitespace: the same words).
 
 use std::fmt;
-use std::io::{self, Read};
+use std::io::{self, Read, Seek};
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -122,30 +122,28 @@ impl fmt::Display for ObjError {
 impl std::error::Error for ObjError {}
 
 /// Reads and parses an OBJ file (no cache: [`super::mesh_cache::load_obj`]), a run of
-/// whole lines at a time ([`runs`]): a file is never held whole in memory.
+/// whole lines at a time ([`runs`]): a file is held whole only as far as its longest
+/// line.
 pub fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
     let name = path.display().to_string();
-    // the input, and its length when it is a regular file
-    let open = || {
-        let file = super::input::open_input(path)?;
-        let meta = file.metadata()?;
-        Ok((Limited::new(file), meta.is_file().then_some(meta.len())))
-    };
     let cannot = |e: io::Error| ObjError {
         file: name.clone(),
         line: 0,
         message: format!("cannot read: {e}"),
     };
-    let (input, len) = open().map_err(cannot)?;
+    let file = super::input::open_input(path).map_err(cannot)?;
+    let meta = file.metadata().map_err(cannot)?;
     // a pipe cannot be read twice, so only a regular file may take the pieces' pass
-    // first (on any error its serial pass reads the file again)
-    if len.is_some_and(|n| n >= PARALLEL_BYTES as u64) && crate::parallel::threads() > 1 {
-        if let Some(mesh) = parse_parallel(input, true).map_err(cannot)? {
+    // first; on any error its serial pass reads the same open file again from its start
+    if meta.is_file() && meta.len() >= PARALLEL_BYTES as u64 && crate::parallel::threads() > 1 {
+        let mut again = file.try_clone().map_err(cannot)?;
+        if let Some(mesh) = parse_parallel(Limited::new(file), true).map_err(cannot)? {
             return Ok(mesh);
         }
-        return parse_serial(open().map_err(cannot)?.0, true, &name);
+        again.seek(io::SeekFrom::Start(0)).map_err(cannot)?;
+        return parse_serial(Limited::new(again), true, &name);
     }
-    parse_serial(input, true, &name)
+    parse_serial(Limited::new(file), true, &name)
 }
 
 /// Parses OBJ text; `file` is only used in messages.
@@ -256,6 +254,7 @@ fn runs(
     let mut buf = Vec::with_capacity(chunk + (64 << 10));
     let mut first = true;
     loop {
+        let kept = buf.len();
         let got = (&mut input)
             .take(chunk as u64)
             .read_to_end(&mut buf)
@@ -266,7 +265,18 @@ fn runs(
             // shifting every index after it)
             buf.drain(..3);
         }
-        let cut = if end { buf.len() } else { whole_lines(&buf) };
+        // the kept part line has no line end but perhaps a CR at its end, so only
+        // from there on can a line end lie (a scan of the whole buffer at each read
+        // made a line of n bytes cost n² / chunk)
+        let cut = if end {
+            buf.len()
+        } else {
+            let from = kept.saturating_sub(1);
+            match whole_lines(&buf[from..]) {
+                0 => 0,
+                c => from + c,
+            }
+        };
         if cut > 0 {
             f(&buf[..cut])?;
             buf.drain(..cut);
@@ -293,8 +303,14 @@ fn whole_lines(text: &[u8]) -> usize {
 /// The pieces of `text` parsed in parallel, in order; `None` on any error.
 fn pieces(text: &[u8]) -> Option<Vec<Part>> {
     let pieces = (text.len() / PIECE_BYTES).clamp(2, 256);
+    // each search from where the last one ended at the earliest, so that a long line
+    // is scanned once, not once per cut inside it
+    let mut last = 0;
     let mut cuts: Vec<usize> = (0..=pieces)
-        .map(|k| next_line_start(text, k * text.len() / pieces))
+        .map(|k| {
+            last = next_line_start(text, (k * text.len() / pieces).max(last));
+            last
+        })
         .collect();
     cuts.dedup();
     cuts.par_windows(2)
@@ -1096,6 +1112,41 @@ mod tests {
         assert_eq!(whole_lines(b"v 1\nv 2\r"), 4);
         assert_eq!(whole_lines(b"\r"), 0);
         assert_eq!(whole_lines(b"\r\r"), 1);
+    }
+
+    /// A file read in pieces on two threads, with an error in the middle: the serial
+    /// pass reads the same open file again from its start and names the error's line;
+    /// without the error, the pieces' mesh is the whole text's.
+    #[test]
+    fn a_large_file_with_an_error_is_read_again_by_the_serial_pass() {
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let dir = std::env::temp_dir().join(format!("octaray-obj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("big.obj");
+        let mut r = Rng(21);
+        let mut text = random_obj(&mut r, 150_000, false);
+        assert!(
+            text.len() >= PARALLEL_RUN_BYTES + PARALLEL_BYTES,
+            "{}",
+            text.len()
+        );
+        std::fs::write(&path, &text).unwrap();
+        let whole = Part::parse(&text, "big.obj", true).map(|p| Mesh::new(p.vertices, p.triangles));
+        assert!(whole.is_ok());
+        assert_eq!(two.install(|| parse_file(&path)).ok(), whole.ok());
+        // an index out of range in the second run
+        let cut = next_line_start(&text, PARALLEL_RUN_BYTES + 1000);
+        text.splice(cut..cut, b"f 1 2 999999999\n".iter().copied());
+        std::fs::write(&path, &text).unwrap();
+        let got = two.install(|| parse_file(&path));
+        let want = Part::parse(&text, &path.display().to_string(), true).map(|_| ());
+        let _ = std::fs::remove_dir_all(&dir);
+        let err = got.expect_err("an index out of range");
+        assert_eq!(Err(err.clone()), want);
+        assert!(err.message.contains("999999999"), "{err}");
     }
 
     /// A file large enough to be parsed in pieces gives the serial pass's mesh, and
