@@ -126,11 +126,7 @@ impl std::error::Error for ObjError {}
 /// line.
 pub fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
     let name = path.display().to_string();
-    let cannot = |e: io::Error| ObjError {
-        file: name.clone(),
-        line: 0,
-        message: format!("cannot read: {e}"),
-    };
+    let cannot = |e| unreadable(&name, e);
     let file = super::input::open_input(path).map_err(cannot)?;
     let meta = file.metadata().map_err(cannot)?;
     // a pipe cannot be read twice, so only a regular file may take the pieces' pass
@@ -144,6 +140,15 @@ pub fn parse_file(path: &Path) -> Result<Mesh, ObjError> {
         return parse_serial(Limited::new(again), true, &name);
     }
     parse_serial(Limited::new(file), true, &name)
+}
+
+/// The error of an input `file` that could not be read.
+fn unreadable(file: &str, e: io::Error) -> ObjError {
+    ObjError {
+        file: file.to_string(),
+        line: 0,
+        message: format!("cannot read: {e}"),
+    }
 }
 
 /// Parses OBJ text; `file` is only used in messages.
@@ -166,14 +171,9 @@ const PARALLEL_RUN_BYTES: usize = 4 << 20;
 /// is harmless in a comment or a line the format ignores: a line holding any is
 /// decoded lossily, so a bad byte inside a `v` or `f` line makes it fail with its line.
 pub fn parse_obj_bytes(text: &[u8], file: &str) -> Result<Mesh, ObjError> {
-    let read = |e: io::Error| ObjError {
-        file: file.to_string(),
-        line: 0,
-        message: format!("cannot read: {e}"),
-    };
     if text.len() >= PARALLEL_BYTES
         && crate::parallel::threads() > 1
-        && let Some(mesh) = parse_parallel(text, false).map_err(read)?
+        && let Some(mesh) = parse_parallel(text, false).map_err(|e| unreadable(file, e))?
     {
         return Ok(mesh);
     }
@@ -194,11 +194,7 @@ fn serial_runs(input: impl Read, chunk: usize, bom: bool, file: &str) -> Result<
     })
     .map_err(|stop| match stop {
         Stop::Obj(e) => e,
-        Stop::Read(e) => ObjError {
-            file: file.to_string(),
-            line: 0,
-            message: format!("cannot read: {e}"),
-        },
+        Stop::Read(e) => unreadable(file, e),
         Stop::Pieces => unreachable!("the serial pass has no pieces"),
     })?;
     Ok(Mesh::new(part.vertices, part.triangles))
