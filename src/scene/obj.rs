@@ -189,14 +189,13 @@ fn parse_serial(input: impl Read, bom: bool, file: &str) -> Result<Mesh, ObjErro
 /// [`parse_serial`] in runs of about `chunk` bytes.
 fn serial_runs(input: impl Read, chunk: usize, bom: bool, file: &str) -> Result<Mesh, ObjError> {
     let mut part = Part::new(true);
-    runs(input, chunk, bom, |text| {
-        part.feed(text, file).map_err(Stop::Obj)
-    })
-    .map_err(|stop| match stop {
-        Stop::Obj(e) => e,
-        Stop::Read(e) => unreadable(file, e),
-        Stop::Pieces => unreachable!("the serial pass has no pieces"),
-    })?;
+    runs(
+        input,
+        chunk,
+        bom,
+        |e| unreadable(file, e),
+        |text| part.feed(text, file),
+    )?;
     Ok(Mesh::new(part.vertices, part.triangles))
 }
 
@@ -210,41 +209,31 @@ fn parse_parallel(input: impl Read, bom: bool) -> io::Result<Option<Mesh>> {
 /// [`parse_parallel`] in runs of about `chunk` bytes.
 fn parallel_runs(input: impl Read, chunk: usize, bom: bool) -> io::Result<Option<Mesh>> {
     let mut parts = Vec::new();
-    let done = runs(input, chunk, bom, |text| {
-        parts.extend(pieces(text).ok_or(Stop::Pieces)?);
+    // stopped by `Some(read error)`, or `None` for an error in some piece
+    let done = runs(input, chunk, bom, Some, |text| {
+        parts.extend(pieces(text).ok_or(None)?);
         Ok(())
     });
     match done {
-        // joined once, into arrays of the final size (joined run by run, the arrays
-        // grew while the pieces came and went, and the fragments stayed resident:
-        // 1.2x the peak memory of a 1M-triangle render on two threads)
+        // joined once, into arrays of the final size
         Ok(()) => Ok(join(parts)),
-        Err(Stop::Pieces) => Ok(None),
-        Err(Stop::Read(e)) => Err(e),
-        Err(Stop::Obj(_)) => unreachable!("pieces report no line"),
+        Err(None) => Ok(None),
+        Err(Some(e)) => Err(e),
     }
-}
-
-/// Why [`runs`] stopped early.
-enum Stop {
-    /// The input could not be read.
-    Read(io::Error),
-    /// The serial pass's first error.
-    Obj(ObjError),
-    /// Some piece had an error.
-    Pieces,
 }
 
 /// Reads `input` about `chunk` bytes at a time and hands `f` each run of whole lines
 /// (a line longer than `chunk` is read on until it ends), in order, the last one at
 /// the end of the input whatever its end; a leading byte-order mark skipped when
-/// `bom`. The runs' lines are the input's lines, each whole in one run.
-fn runs(
+/// `bom`. The runs' lines are the input's lines, each whole in one run. Stops at the
+/// first error of `f`, or of the input (made an `E` by `read`).
+fn runs<E>(
     mut input: impl Read,
     chunk: usize,
     bom: bool,
-    mut f: impl FnMut(&[u8]) -> Result<(), Stop>,
-) -> Result<(), Stop> {
+    read: impl Fn(io::Error) -> E,
+    mut f: impl FnMut(&[u8]) -> Result<(), E>,
+) -> Result<(), E> {
     debug_assert!(chunk >= 4, "a run holds a byte-order mark");
     // room for a run and the part line before it: no growth while lines are short
     let mut buf = Vec::with_capacity(chunk + (64 << 10));
@@ -254,7 +243,7 @@ fn runs(
         let got = (&mut input)
             .take(chunk as u64)
             .read_to_end(&mut buf)
-            .map_err(Stop::Read)?;
+            .map_err(&read)?;
         let end = got < chunk;
         if std::mem::take(&mut first) && bom && buf.starts_with(b"\xef\xbb\xbf") {
             // it would glue itself to the first keyword (and drop a `v` line,
@@ -1058,15 +1047,20 @@ mod tests {
         }
     }
 
+    /// A pool of two worker threads, for the pieces' pass.
+    fn two_threads() -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+    }
+
     /// Read in runs of any size (a few bytes: lines longer than a run, a CR at a run's
     /// end before its LF or not, a byte-order mark in the first run), both passes give
     /// the mesh or the first error of the whole text at once.
     #[test]
     fn runs_of_any_size_parse_as_the_whole_text() {
-        let two = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let two = two_threads();
         let mut r = Rng(13);
         for case in 0..300 {
             let lines = 1 + r.below(40) as usize;
@@ -1115,10 +1109,7 @@ mod tests {
     /// without the error, the pieces' mesh is the whole text's.
     #[test]
     fn a_large_file_with_an_error_is_read_again_by_the_serial_pass() {
-        let two = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let two = two_threads();
         let dir = std::env::temp_dir().join(format!("octaray-obj-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("big.obj");
@@ -1149,10 +1140,7 @@ mod tests {
     /// its errors (first in file order, with the line) are the serial pass's too.
     #[test]
     fn pieces_on_two_threads_join_to_the_serial_result() {
-        let two = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let two = two_threads();
         let mut r = Rng(9);
         for case in 0..6 {
             let mut text = random_obj(&mut r, 120_000, false);
