@@ -273,7 +273,7 @@ struct BenchTraceArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Instruction set of the kernels: auto (the widest this CPU runs), avx2 (8-lane
-    /// packets) or avx512 (adds the 16-lane packets, mode=16); default: the
+    /// packets) or avx512 (adds the 16-lane packets, mode=16 and mode=64); default: the
     /// OCTARAY_ISA environment variable, else auto (OCTARAY_ISA, when set, must name
     /// one of these for every command).
     #[arg(long, value_name = "auto|avx2|avx512")]

@@ -1,8 +1,9 @@
-//! The 16-lane packets (`avx512`) against the 8-lane ones, ray by ray: the same hit
-//! distance, bit for bit, and the same shadow answer, on a mesh and on a scene of
-//! every primitive kind (whose spheres, quadrics and floor the 16-lane walk hands to
-//! the 8-lane kernels half by half). On a CPU without AVX-512 the choice of
-//! instruction set is checked instead: `avx512` is refused and `auto` is `avx2`.
+//! The 16-lane packets (`avx512`), and four of them walking the tree as one, against
+//! the 8-lane ones, ray by ray: the same hit distance, bit for bit, and the same shadow
+//! answer, on a mesh and on a scene of every primitive kind (whose spheres, quadrics
+//! and floor the 16-lane walk hands to the 8-lane kernels half by half). On a CPU
+//! without AVX-512 the choice of instruction set is checked instead: `avx512` is
+//! refused and `auto` is `avx2`.
 
 mod common;
 
@@ -23,23 +24,38 @@ fn mode16() -> Option<Mode> {
         .map(Mode::Packet16)
 }
 
-/// Traces `rays` at 8 and 16 lanes; asserts every ray's t is the same bits and every
-/// shadow ray the same answer; returns the node tests of both widths.
-fn same_per_ray(name: &str, bvh: &Bvh, rays: &RaySet, m16: Mode) -> (Steps, Steps) {
+/// The mode of 64 rays as four 16-lane packets, beside the 16-lane one.
+fn mode64(m16: Mode) -> Mode {
+    match m16 {
+        Mode::Packet16(token) => Mode::Packet64(token),
+        other => panic!("not the 16-lane mode: {other:?}"),
+    }
+}
+
+/// Traces `rays` at 8 and 16 lanes and 64 rays at a time; asserts every ray's t is the
+/// same bits and every shadow ray the same answer; returns the node tests of the
+/// three.
+fn same_per_ray(name: &str, bvh: &Bvh, rays: &RaySet, m16: Mode) -> (Steps, Steps, Steps) {
     let n = rays.origin.len();
-    let (mut t8, mut t16) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut t8, mut t16, mut t64) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
     let s8 = trace(bvh, rays, Mode::Packet8, &mut t8);
     let s16 = trace(bvh, rays, m16, &mut t16);
+    let s64 = trace(bvh, rays, mode64(m16), &mut t64);
     let hits = t8.iter().filter(|t| **t >= 0.0).count();
     assert!(
         hits > n / 10,
         "{name}: too few hits ({hits} of {n}) to compare"
     );
-    for (i, (a, b)) in t8.iter().zip(&t16).enumerate() {
+    for (i, ((a, b), c)) in t8.iter().zip(&t16).zip(&t64).enumerate() {
         assert_eq!(
             a.to_bits(),
             b.to_bits(),
             "{name}: ray {i}: t {a} (8 lanes) vs {b} (16)"
+        );
+        assert_eq!(
+            a.to_bits(),
+            c.to_bits(),
+            "{name}: ray {i}: t {a} (8 lanes) vs {c} (64 at a time)"
         );
     }
     let set = shadow_rays(rays.clone(), t8);
@@ -54,7 +70,7 @@ fn same_per_ray(name: &str, bvh: &Bvh, rays: &RaySet, m16: Mode) -> (Steps, Step
     for (i, (a, b)) in b8.iter().zip(&b16).enumerate() {
         assert_eq!(a, b, "{name}: shadow ray {i}: {a} (8 lanes) vs {b} (16)");
     }
-    (s8, s16)
+    (s8, s16, s64)
 }
 
 #[test]
@@ -65,7 +81,7 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
         return;
     };
     let bvh = Bvh::build(PrimSet::from_triangles(torus(120, 60)));
-    let (s8, s16) = same_per_ray("primary", &bvh, &primary_rays(512, 512), m16);
+    let (s8, s16, s64) = same_per_ray("primary", &bvh, &primary_rays(512, 512), m16);
     // the 16-lane frustum walk ran (not the halves): one node test serves 16 rays
     assert!(
         (s16.boxes as f64) < 0.75 * s8.boxes as f64,
@@ -73,10 +89,19 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
         s16.boxes,
         s8.boxes
     );
+    // and four packets walked as one: one node test serves 64 rays, each leaf is
+    // tested by each packet as before
+    assert!(
+        (s64.boxes as f64) < 0.5 * s16.boxes as f64,
+        "node tests: {} 64 at a time vs {} at 16 lanes",
+        s64.boxes,
+        s16.boxes
+    );
     // incoherent packets: each lane's own walk at either width (closest hit: 16 or 8
     // stepped in turn; any hit: one after another), so the same node and triangle tests
-    let (s8, s16) = same_per_ray("incoherent", &bvh, &incoherent_rays(1 << 14, 3), m16);
+    let (s8, s16, s64) = same_per_ray("incoherent", &bvh, &incoherent_rays(1 << 14, 3), m16);
     assert_eq!(s8, s16, "incoherent: 8 lanes vs 16");
+    assert_eq!(s16, s64, "incoherent: 16 lanes vs 64 at a time");
 }
 
 /// A 16-lane packet whose halves are each one coherent frustum but of different
@@ -163,7 +188,13 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_every_primitive_kind() {
         origin,
         dir,
     };
-    let (s8, s16) = same_per_ray("mixed", &bvh, &rays, m16);
+    let (s8, s16, s64) = same_per_ray("mixed", &bvh, &rays, m16);
+    assert!(
+        s64.boxes < s16.boxes,
+        "node tests: {} 64 at a time vs {} at 16 lanes",
+        s64.boxes,
+        s16.boxes
+    );
     assert!(
         s16.boxes < s8.boxes,
         "node tests: {} at 16 lanes vs {} at 8",

@@ -267,6 +267,10 @@ pub enum Mode {
     /// `Bvh::intersect_x16`, 16 consecutive rays as one packet (the `avx512` kernels;
     /// the proof that the CPU runs them).
     Packet16(Avx512),
+    /// `Bvh::intersect_x64`, 64 consecutive rays (an 8 × 8 tile of the primary rays) as
+    /// four 16-lane packets walking the tree once; shadow rays (any hit) go 16 at a
+    /// time, as in `Packet16`.
+    Packet64(Avx512),
 }
 
 impl Mode {
@@ -275,6 +279,7 @@ impl Mode {
             Mode::Single | Mode::SingleBinary | Mode::Stream => 1,
             Mode::Packet8 | Mode::Packet8Binary => 8,
             Mode::Packet16(_) => 16,
+            Mode::Packet64(_) => 64,
         }
     }
 
@@ -288,6 +293,7 @@ impl Mode {
             Mode::Packet8 => "8",
             Mode::Packet8Binary => "8b",
             Mode::Packet16(_) => "16",
+            Mode::Packet64(_) => "64",
         }
     }
 }
@@ -394,8 +400,11 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
             // SAFETY: the token proves this CPU has the features the function is
             // compiled with
             Mode::Packet16(_) => unsafe { x16::trace(bvh, rays, base, out, &mut steps) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above
+            Mode::Packet64(_) => unsafe { x16::trace64(bvh, rays, base, out, &mut steps) },
             #[cfg(not(target_arch = "x86_64"))]
-            Mode::Packet16(_) => unreachable!("no AVX-512 outside x86-64"),
+            Mode::Packet16(_) | Mode::Packet64(_) => unreachable!("no AVX-512 outside x86-64"),
         }
         steps
     })
@@ -504,9 +513,11 @@ pub fn trace_occluded(bvh: &Bvh, set: &ShadowRays, mode: Mode, out: &mut [u8]) -
             }
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `trace`
-            Mode::Packet16(_) => unsafe { x16::trace_occluded(bvh, set, base, out, &mut steps) },
+            Mode::Packet16(_) | Mode::Packet64(_) => unsafe {
+                x16::trace_occluded(bvh, set, base, out, &mut steps)
+            },
             #[cfg(not(target_arch = "x86_64"))]
-            Mode::Packet16(_) => unreachable!("no AVX-512 outside x86-64"),
+            Mode::Packet16(_) | Mode::Packet64(_) => unreachable!("no AVX-512 outside x86-64"),
         }
         steps
     })
@@ -551,6 +562,41 @@ mod x16 {
             bvh.intersect_x16::<Watertight>(&p, active, &mut h, steps);
             let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
             ts.copy_from_slice(&t[..n]);
+        }
+    }
+
+    /// Closest hits of 64 consecutive rays at a time, four 16-lane packets walking
+    /// the tree once (`Bvh::intersect_x64`).
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
+    pub(super) fn trace64(
+        bvh: &Bvh,
+        rays: &RaySet,
+        base: usize,
+        out: &mut [f32],
+        steps: &mut Steps,
+    ) {
+        for (k, ts) in out.chunks_mut(64).enumerate() {
+            let b = base + k * 64;
+            // the rays of packet q: ts[16q..], as many as there are (none past the end)
+            let n = ts.len();
+            let len = |q: usize| n.saturating_sub(16 * q).min(16);
+            let act = [0, 1, 2, 3].map(|q| M16::from_bits((1u32 << len(q)) - 1));
+            // (a packet past the end repeats the first one's rays, none of them active)
+            let p = [0, 1, 2, 3].map(|q| match len(q) {
+                0 => packet16(rays, b, len(0), act[q]),
+                n => packet16(rays, b + 16 * q, n, act[q]),
+            });
+            let mut h = [(); 4].map(|_| HitPacket16 {
+                t: F16::splat(f32::INFINITY),
+                prim: I16::splat(-1),
+                u: F16::zero(),
+                v: F16::zero(),
+            });
+            bvh.intersect_x64::<Watertight>(&p, act, &mut h, steps);
+            for (q, h) in h.iter().enumerate() {
+                let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
+                ts[16 * q..16 * q + len(q)].copy_from_slice(&t[..len(q)]);
+            }
         }
     }
 
@@ -869,11 +915,10 @@ pub fn run(
         // shadow set, `primary.shadow`): only those lines, for profiling
         let only = std::env::var("OCTARAY_BENCH_ONLY").unwrap_or_default();
         let (only_rays, only_mode) = only.split_once('/').unwrap_or((&only, ""));
-        // the 16-lane packets under `avx512` only
-        let modes = isa
-            .avx512_kernels()
-            .map(Mode::Packet16)
-            .into_iter()
+        // the 16-lane packets (and four of them at once) under `avx512` only
+        let wide16 = isa.avx512_kernels();
+        let modes = (wide16.map(Mode::Packet64).into_iter())
+            .chain(wide16.map(Mode::Packet16))
             .chain([
                 Mode::Packet8,
                 Mode::Packet8Binary,
@@ -915,7 +960,7 @@ pub fn run(
                 run.boxes_per_ray,
                 match mode {
                     Mode::Single | Mode::Stream => "wide node tests (8 boxes each)",
-                    Mode::Packet8 | Mode::Packet16(_) =>
+                    Mode::Packet8 | Mode::Packet16(_) | Mode::Packet64(_) =>
                         "node tests (8-wide: per packet when the signs agree, per lane when not)",
                     _ => "box tests",
                 },
@@ -949,7 +994,9 @@ pub fn run(
                 let set = shadow_rays(rays, t);
                 let n = set.t_max.iter().filter(|&&t| t > 0.0).count();
                 let mut blocked = vec![0u8; set.t_max.len()];
-                for &mode in modes.clone() {
+                // (`mode=64` traces shadow rays 16 at a time: the any-hit walk of 64 as
+                // one ran 0.7–0.8 of it, benches/README.md)
+                for &mode in modes.clone().filter(|m| !matches!(m, Mode::Packet64(_))) {
                     let r = timed_occluded(&bvh, &set, mode, reps, &mut blocked);
                     line(set.rays.name, n, mode, r);
                 }

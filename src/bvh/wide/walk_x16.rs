@@ -11,6 +11,12 @@
 //! scattered far past the frustum's limit take all sixteen lanes' single-ray walks
 //! (closest hit: stepped in turn). A lane gets what the 8-lane walks give it, bit for
 //! bit: the kernels are the same generic code (`tests/lanes.rs`).
+//!
+//! Four such packets of the same direction signs (an 8 × 8 tile of camera rays) can
+//! walk the tree as one ([`Bvh::intersect_x64`]): each node tested once for the 64
+//! rays against the union of their frusta, each leaf by each packet with its own
+//! frustum and lanes. Closest hits only: the any-hit walk of four shadow packets as
+//! one ran 0.7–0.8 of four walks (benches/README.md).
 
 use super::TriBlock;
 use super::walk_x8::{Frustum, WidePacket, finite_lanes, shared_octant};
@@ -133,7 +139,18 @@ impl Bvh {
         hit: &mut HitPacket16,
         steps: &mut Steps,
     ) {
-        let (half, fin, frustum) = self.frustum_x16(r, active);
+        self.intersect_x16_by::<T>(r, self.frustum_x16(r, active), hit, steps);
+    }
+
+    /// [`Bvh::intersect_x16`] by the route [`Bvh::frustum_x16`] gave.
+    #[inline(always)]
+    fn intersect_x16_by<T: TriangleKernel>(
+        &self,
+        r: &RayPacket16,
+        (half, fin, frustum): ([Mask8; 2], [Mask8; 2], Route16),
+        hit: &mut HitPacket16,
+        steps: &mut Steps,
+    ) {
         // (the halves' route, `intersect_x8`, bounds its own lanes)
         if self.bounds_by_floor() && !matches!(frustum, Err(false)) {
             let mut h = hit.halves();
@@ -167,6 +184,79 @@ impl Bvh {
             self.intersect_x8::<T>(&r.halves[k], half[k], hk, steps);
         }
         *hit = HitPacket16::from_halves(h);
+    }
+
+    /// Closest hits of four 16-lane packets (a block of 64 camera rays, say) below
+    /// `hit[q].t`: when each goes as one frustum and all four share their direction
+    /// signs, one walk of the tree for the four ([`Bvh::frustum_walk_n`]: each node
+    /// tested once for 64 rays, each leaf with each packet's own frustum and lanes);
+    /// else each packet by [`Bvh::intersect_x16`]. Per lane what `intersect_x16` gives
+    /// it. Call only from code compiled with AVX-512.
+    #[inline(always)]
+    pub fn intersect_x64<T: TriangleKernel>(
+        &self,
+        r: &[RayPacket16; 4],
+        active: [M16; 4],
+        hit: &mut [HitPacket16; 4],
+        steps: &mut Steps,
+    ) {
+        let routes = [0, 1, 2, 3].map(|q| self.frustum_x16(&r[q], active[q]));
+        let oct = match routes[0].2 {
+            Ok((oct, _)) => oct,
+            Err(_) => u32::MAX,
+        };
+        if !routes.iter().all(|x| matches!(x.2, Ok((o, _)) if o == oct)) {
+            for (q, route) in routes.into_iter().enumerate() {
+                self.intersect_x16_by::<T>(&r[q], route, &mut hit[q], steps);
+            }
+            return;
+        }
+        let subs = [0, 1, 2, 3].map(|q| match &routes[q].2 {
+            Ok((_, fr)) => fr,
+            Err(_) => unreachable!("every route is one frustum"),
+        });
+        // as `intersect_x16` does for one packet: the floor first, the tree, then what
+        // lies beside it
+        for q in 0..4 {
+            let half = routes[q].0;
+            if self.bounds_by_floor() {
+                let mut h = hit[q].halves();
+                for (k, hk) in h.iter_mut().enumerate() {
+                    self.prims.bound_by_floor_x8(&r[q].halves[k], half[k], hk);
+                }
+                hit[q] = HitPacket16::from_halves(h);
+            }
+        }
+        let act = [0, 1, 2, 3].map(|q| cat_mask(routes[q].1[0], routes[q].1[1]));
+        with_const!(
+            oct,
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            self.frustum_walk_x64::<T>(r, act, subs, hit, steps)
+        );
+        for q in 0..4 {
+            let half = routes[q].0;
+            let mut h = hit[q].halves();
+            for (k, hk) in h.iter_mut().enumerate() {
+                if half[k].any() {
+                    self.intersect_beside_x8::<T>(&r[q].halves[k], half[k], hk, steps);
+                }
+            }
+            hit[q] = HitPacket16::from_halves(h);
+        }
+    }
+
+    #[inline(always)]
+    fn frustum_walk_x64<T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &[RayPacket16; 4],
+        act: [M16; 4],
+        subs: [&Frustum; 4],
+        hit: &mut [HitPacket16; 4],
+        steps: &mut Steps,
+    ) {
+        let fr = Frustum::union::<OCT>(&subs);
+        let r = [&r[0], &r[1], &r[2], &r[3]];
+        self.frustum_walk_n::<RayPacket16, T, OCT, 4>(r, act, &fr, subs, hit, steps);
     }
 
     /// The halves of `active`, their finite lanes, and when one frustum serves all the

@@ -180,6 +180,43 @@ impl Frustum {
         (near.le(far).bits(), near)
     }
 
+    /// The frustum of the lanes of every frustum of `fs` (each of direction signs
+    /// `OCT`): each bound the outer one of theirs, so a box that some lane of some
+    /// frustum may meet passes it; one origin when they all have the same bits.
+    #[inline(always)]
+    pub(super) fn union<const OCT: u32>(fs: &[&Frustum]) -> Frustum {
+        let same = |a: &[f32x8; 3], b: &[f32x8; 3]| {
+            (0..3).all(|k| a[k].as_array()[0].to_bits() == b[k].as_array()[0].to_bits())
+        };
+        let mut u = Frustum {
+            o_near: fs[0].o_near,
+            o_far: fs[0].o_far,
+            origin: fs[0].origin,
+            r_lo: fs[0].r_lo,
+            r_hi: fs[0].r_hi,
+        };
+        for f in &fs[1..] {
+            for a in 0..3 {
+                // the entry plane's origin bound is o_hi when 1/d > 0 (the largest
+                // over the lanes), else o_lo; the exit plane's the other one
+                if OCT >> a & 1 == 0 {
+                    u.o_near[a] = u.o_near[a].fast_max(f.o_near[a]);
+                    u.o_far[a] = u.o_far[a].fast_min(f.o_far[a]);
+                } else {
+                    u.o_near[a] = u.o_near[a].fast_min(f.o_near[a]);
+                    u.o_far[a] = u.o_far[a].fast_max(f.o_far[a]);
+                }
+                u.r_lo[a] = u.r_lo[a].fast_min(f.r_lo[a]);
+                u.r_hi[a] = u.r_hi[a].fast_max(f.r_hi[a]);
+            }
+            u.origin = match (u.origin, f.origin) {
+                (Some(a), Some(b)) if same(&a, &b) => Some(a),
+                _ => None,
+            };
+        }
+        u
+    }
+
     /// The triangles of block `b` whose binary leaf some lane may enter, as bits: all of
     /// them in a block of one binary leaf (its box is the slot's, which the frustum has
     /// passed), else those whose leaf box passes [`Frustum::test`].
@@ -504,6 +541,80 @@ impl Bvh {
                 t_hi = self.leaf_intersect::<P, T, OCT>(cur, r, act, fr, t_hi, hit, steps);
             }
             // pop the next subtree some lane may still enter before its nearest hit
+            loop {
+                let Some(p) = stack.pop() else {
+                    break 'walk;
+                };
+                if p.near <= t_hi * FAR_WIDEN {
+                    cur = p.to;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// [`Bvh::frustum_walk`] of `N` packets of direction signs `OCT` as one: each node
+    /// tested once, against `fr` (a frustum of every packet's lanes, [`Frustum::union`]),
+    /// each leaf reached with each packet's own frustum `sub[k]` and lanes `act[k]`,
+    /// and a popped subtree skipped when its entry bound lies behind every lane's
+    /// nearest hit. Per lane what `frustum_walk` gives it: the leaves are the same
+    /// code, and every leaf a lane's own walk reaches is reached here.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn frustum_walk_n<
+        P: WidePacket,
+        T: TriangleKernel,
+        const OCT: u32,
+        const N: usize,
+    >(
+        &self,
+        r: [&P; N],
+        act: [Mask<P>; N],
+        fr: &Frustum,
+        sub: [&Frustum; N],
+        hit: &mut [P::Hit; N],
+        steps: &mut Steps,
+    ) {
+        use simd::LaneMask as _;
+        let w = &self.wide;
+        // each packet's largest nearest hit, and theirs
+        let mut t_k: [f32; N] = std::array::from_fn(|k| max_in(P::hit_t(&hit[k]), act[k]));
+        let largest = |t: &[f32; N]| t.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        let mut t_hi = largest(&t_k);
+        let mut stack = Stack::<Pending, WIDE_STACK>::new();
+        let mut cur = SlotRef::ROOT;
+        'walk: loop {
+            if cur.slot.is_interior() {
+                let node = &w.nodes[cur.child as usize];
+                steps.boxes += 1;
+                let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
+                if bits != 0 {
+                    let first = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if bits == 0 {
+                        cur = node.get(first);
+                        continue 'walk;
+                    }
+                    w.prefetch_children(node, bits | 1 << first, true);
+                    cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
+                    continue 'walk;
+                }
+            } else {
+                for k in 0..N {
+                    if act[k].any() {
+                        t_k[k] = self.leaf_intersect::<P, T, OCT>(
+                            cur,
+                            r[k],
+                            act[k],
+                            sub[k],
+                            t_k[k],
+                            &mut hit[k],
+                            steps,
+                        );
+                    }
+                }
+                t_hi = largest(&t_k);
+            }
             loop {
                 let Some(p) = stack.pop() else {
                     break 'walk;
