@@ -104,6 +104,48 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
     assert_eq!(s16, s64, "incoherent: 16 lanes vs 64 at a time");
 }
 
+/// The 64-ray walk on packets that do not share one origin: each 16-ray packet of the
+/// camera rays moved by its own offset (the union's origin bounds then differ from
+/// every packet's), then every ray by its own; and a ray count that leaves a last
+/// group of 40 rays (a packet of 8 and two of none).
+#[test]
+fn sixty_four_at_a_time_give_every_ray_what_eight_give_it_from_spread_origins() {
+    let Some(m16) = mode16() else {
+        return;
+    };
+    let bvh = Bvh::build(PrimSet::from_triangles(torus(120, 60)));
+    let camera = primary_rays(512, 512);
+    let mut rng = Rng(17);
+    let mut by_packet = camera.clone();
+    for packet in by_packet.origin.chunks_mut(16) {
+        // 0.03 to 0.06 either way on each axis
+        let mut off = || rng.range(0.03, 0.06) * if rng.f64() < 0.5 { -1.0 } else { 1.0 };
+        let shift = DVec3::new(off(), off(), off()).as_vec3();
+        for o in packet {
+            *o += shift;
+        }
+    }
+    let (_, s16, s64) = same_per_ray("origins by packet", &bvh, &by_packet, m16);
+    assert!(
+        s64.boxes < s16.boxes,
+        "origins by packet: the 64-ray walk ran"
+    );
+    let mut by_ray = camera.clone();
+    for o in &mut by_ray.origin {
+        *o += rng
+            .vec_in(DVec3::splat(-0.01), DVec3::splat(0.01))
+            .as_vec3();
+    }
+    let (_, s16, s64) = same_per_ray("origins by ray", &bvh, &by_ray, m16);
+    assert!(s64.boxes < s16.boxes, "origins by ray: the 64-ray walk ran");
+    let mut short = camera;
+    let n = short.origin.len() - 24;
+    short.origin.truncate(n);
+    short.dir.truncate(n);
+    assert_eq!(n % 64, 40);
+    same_per_ray("a short last group", &bvh, &short, m16);
+}
+
 /// A 16-lane packet whose halves are each one coherent frustum but of different
 /// direction signs (a block across the image's centre column) goes half by half, each
 /// half as one frustum: the node tests of the 8-lane packets, not of 16 single rays.

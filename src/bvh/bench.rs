@@ -267,9 +267,9 @@ pub enum Mode {
     /// `Bvh::intersect_x16`, 16 consecutive rays as one packet (the `avx512` kernels;
     /// the proof that the CPU runs them).
     Packet16(Avx512),
-    /// `Bvh::intersect_x64`, 64 consecutive rays (an 8 × 8 tile of the primary rays) as
-    /// four 16-lane packets walking the tree once; shadow rays (any hit) go 16 at a
-    /// time, as in `Packet16`.
+    /// `Bvh::intersect_x64`, 64 consecutive rays (an 8 × 8 tile of the generated primary
+    /// rays and of the harness's file) as four 16-lane packets walking the tree once;
+    /// shadow rays (any hit) go 16 at a time, as in `Packet16`.
     Packet64(Avx512),
 }
 
@@ -593,9 +593,10 @@ mod x16 {
                 v: F16::zero(),
             });
             bvh.intersect_x64::<Watertight>(&p, act, &mut h, steps);
-            for (q, h) in h.iter().enumerate() {
+            // (packets past the end have no rays: `zip` stops at the last one)
+            for (h, ts) in h.iter().zip(ts.chunks_mut(16)) {
                 let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
-                ts[16 * q..16 * q + len(q)].copy_from_slice(&t[..len(q)]);
+                ts.copy_from_slice(&t[..ts.len()]);
             }
         }
     }

@@ -181,17 +181,15 @@ impl Frustum {
     }
 
     /// The frustum of the lanes of every frustum of `fs` (each of direction signs
-    /// `OCT`): each bound the outer one of theirs, so a box that some lane of some
-    /// frustum may meet passes it; one origin when they all have the same bits.
+    /// `OCT`), for node tests only: each bound the outer one of theirs, so a box that
+    /// some lane of some frustum may meet passes it. No shared origin: the leaves are
+    /// tested with each packet's own frustum.
     #[inline(always)]
     pub(super) fn union<const OCT: u32>(fs: &[&Frustum]) -> Frustum {
-        let same = |a: &[f32x8; 3], b: &[f32x8; 3]| {
-            (0..3).all(|k| a[k].as_array()[0].to_bits() == b[k].as_array()[0].to_bits())
-        };
         let mut u = Frustum {
             o_near: fs[0].o_near,
             o_far: fs[0].o_far,
-            origin: fs[0].origin,
+            origin: None,
             r_lo: fs[0].r_lo,
             r_hi: fs[0].r_hi,
         };
@@ -209,17 +207,16 @@ impl Frustum {
                 u.r_lo[a] = u.r_lo[a].fast_min(f.r_lo[a]);
                 u.r_hi[a] = u.r_hi[a].fast_max(f.r_hi[a]);
             }
-            u.origin = match (u.origin, f.origin) {
-                (Some(a), Some(b)) if same(&a, &b) => Some(a),
-                _ => None,
-            };
         }
         u
     }
 
     /// The triangles of block `b` whose binary leaf some lane may enter, as bits: all of
-    /// them in a block of one binary leaf (its box is the slot's, which the frustum has
-    /// passed), else those whose leaf box passes [`Frustum::test`].
+    /// them in a block of one binary leaf (its box is the slot's, which the walk's
+    /// frustum has passed: this one, or under [`Bvh::frustum_walk_n`] the union of it
+    /// and others, so a few more candidates), else those whose leaf box passes
+    /// [`Frustum::test`]. A candidate's hit still counts only for the lanes that pass
+    /// its leaf box by their own test.
     #[inline(always)]
     fn block_candidates<const OCT: u32>(&self, b: &TriBlock, t_hi: f32) -> u32 {
         if b.one_leaf {
@@ -557,8 +554,12 @@ impl Bvh {
     /// tested once, against `fr` (a frustum of every packet's lanes, [`Frustum::union`]),
     /// each leaf reached with each packet's own frustum `sub[k]` and lanes `act[k]`,
     /// and a popped subtree skipped when its entry bound lies behind every lane's
-    /// nearest hit. Per lane what `frustum_walk` gives it: the leaves are the same
-    /// code, and every leaf a lane's own walk reaches is reached here.
+    /// nearest hit. Per lane what `frustum_walk` gives it: the leaves are the same code
+    /// with the packet's own largest hit, and a subtree is skipped only when the union's
+    /// entry bound (at most any lane's own entry) exceeds the largest hit of every lane
+    /// (at least each lane's current one), so no leaf that holds a lane's closest hit is
+    /// skipped. (The leaves a packet's own walk visits may differ: the children are
+    /// ordered by the union's bounds.)
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn frustum_walk_n<
