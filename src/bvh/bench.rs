@@ -546,6 +546,17 @@ mod x16 {
         RayPacket16::new([h0, h1])
     }
 
+    /// Sixteen lanes without a hit.
+    #[inline(always)]
+    fn no_hit() -> HitPacket16 {
+        HitPacket16 {
+            t: F16::splat(f32::INFINITY),
+            prim: I16::splat(-1),
+            u: F16::zero(),
+            v: F16::zero(),
+        }
+    }
+
     /// Closest hits of 16 consecutive rays at a time (as `super::trace`'s packets).
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512bw,avx512dq")]
     pub(super) fn trace(bvh: &Bvh, rays: &RaySet, base: usize, out: &mut [f32], steps: &mut Steps) {
@@ -553,12 +564,7 @@ mod x16 {
             let n = ts.len();
             let active = M16::from_bits((1u32 << n) - 1);
             let p = packet16(rays, base + k * 16, n, active);
-            let mut h = HitPacket16 {
-                t: F16::splat(f32::INFINITY),
-                prim: I16::splat(-1),
-                u: F16::zero(),
-                v: F16::zero(),
-            };
+            let mut h = no_hit();
             bvh.intersect_x16::<Watertight>(&p, active, &mut h, steps);
             let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
             ts.copy_from_slice(&t[..n]);
@@ -586,12 +592,7 @@ mod x16 {
                 0 => packet16(rays, b, len(0), act[q]),
                 n => packet16(rays, b + 16 * q, n, act[q]),
             });
-            let mut h = [(); 4].map(|_| HitPacket16 {
-                t: F16::splat(f32::INFINITY),
-                prim: I16::splat(-1),
-                u: F16::zero(),
-                v: F16::zero(),
-            });
+            let mut h = [(); 4].map(|_| no_hit());
             bvh.intersect_x64::<Watertight>(&p, act, &mut h, steps);
             // (packets past the end have no rays: `zip` stops at the last one)
             for (h, ts) in h.iter().zip(ts.chunks_mut(16)) {

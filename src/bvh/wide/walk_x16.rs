@@ -217,12 +217,12 @@ impl Bvh {
         });
         // as `intersect_x16` does for one packet: the floor first, the tree, then what
         // lies beside it
-        for q in 0..4 {
-            let half = routes[q].0;
-            if self.bounds_by_floor() {
+        if self.bounds_by_floor() {
+            for q in 0..4 {
                 let mut h = hit[q].halves();
                 for (k, hk) in h.iter_mut().enumerate() {
-                    self.prims.bound_by_floor_x8(&r[q].halves[k], half[k], hk);
+                    self.prims
+                        .bound_by_floor_x8(&r[q].halves[k], routes[q].0[k], hk);
                 }
                 hit[q] = HitPacket16::from_halves(h);
             }
