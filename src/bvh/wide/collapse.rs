@@ -1,13 +1,12 @@
 //! The collapse of the binary tree into the 8-wide one.
 //!
-//! Greedy: a node's two children are taken, then the openable child with the largest
-//! surface area is replaced by its two children until there are eight or only leaves
-//! left; O(n), every binary node is opened at most once. A binary subtree of at most
-//! [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, becomes one
-//! leaf: full blocks of [`Triangle8`] for triangles instead of several nearly empty
-//! ones. A node with room left then opens such merged leaves too (largest area first)
-//! where the two halves take no more blocks than the whole: tighter boxes at no cost
-//! in blocks.
+//! By the surface area heuristic, optimally over the binary tree's cuts ([`plan`]): each
+//! wide node's slots are the binary subtrees whose choice costs least, leaves and wide
+//! nodes weighed by their surface area, O(64 n) for n binary nodes. A binary subtree of
+//! at most [`MERGE_MAX`] primitives of one kind, contiguous in that kind's array, may be
+//! one leaf: full blocks of [`Triangle8`] for triangles instead of several nearly empty
+//! ones, each lane keeping its binary leaf's box; the plan weighs such a merged leaf's
+//! blocks against the tighter boxes of its parts.
 
 use wide::f32x8;
 
@@ -22,36 +21,121 @@ use crate::geometry::triangle::Triangle8;
 use crate::geometry::{PrimKind, PrimSet};
 
 /// Subtree summary of a binary node, 8 B: its primitives are `first..first + count` of
-/// one kind (a leaf `slot`), or `slot` is `None` (mixed kinds or not contiguous). Bit
-/// 31 of `first_split`: the two children's runs take no more triangle blocks than this
-/// one (always for other kinds, never for a binary leaf); bits 0..31: `first`.
+/// one kind (a leaf `slot`), or `slot` is `None` (mixed kinds or not contiguous).
 #[derive(Clone, Copy)]
 struct Span {
-    first_split: u32,
+    first: u32,
     slot: Option<Slot>,
 }
 
 impl Span {
     const MIXED: Span = Span {
-        first_split: 0,
+        first: 0,
         slot: None,
     };
-    const SPLIT: u32 = 1 << 31;
 
     #[inline]
     fn count(self) -> u32 {
         self.slot.map_or(0, Slot::count)
     }
+}
 
-    #[inline]
-    fn first(self) -> u32 {
-        self.first_split & !Span::SPLIT
-    }
+/// Cost of one 8-wide node test, per unit of the node's surface area, in the collapse's
+/// surface area heuristic.
+const C_NODE: f32 = 1.0;
+/// Cost of one leaf block (eight triangles at once, or one primitive of another kind),
+/// per unit of the leaf's surface area.
+const C_BLOCK: f32 = 1.0;
+/// `plan[i][0]` of a binary node that becomes a leaf slot.
+const LEAF: u8 = 0;
 
-    #[inline]
-    fn free_split(self) -> bool {
-        self.first_split & Span::SPLIT != 0
+/// The collapse's choices, per binary node `i`, that minimise the surface area cost of
+/// the wide tree (the optimal collapse of Ylitie, Karras and Laine, "Efficient
+/// Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", 2017, with this
+/// tree's leaves): `plan[i][0]` is [`LEAF`] when subtree `i` in one slot is a leaf, else
+/// the slots of the wide node it becomes given to its left child (the right child gets
+/// the rest of 8); `plan[i][k - 1]`, k in 2..=8, is 0 when subtree `i` given k slots
+/// takes one, else the slots given to its left child. One sweep from the last node to
+/// the first (children follow their parent), eight costs per node kept for the parent.
+fn plan(nodes: &[BvhNode], span: &[Span], leafable: impl Fn(usize) -> bool) -> Vec<[u8; 8]> {
+    let mut plan = vec![[0u8; 8]; nodes.len()];
+    // cost[i][k - 1]: least cost of subtree i in at most k slots
+    let mut cost = vec![[0.0f32; 8]; nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = &nodes[i];
+        let area = n.bounds().area();
+        let leaf = if leafable(i) {
+            let (s, count) = (span[i], span[i].count());
+            let blocks = match s.slot {
+                Some(slot) if slot.holds(PrimKind::Triangle) => count.div_ceil(8),
+                _ => count,
+            };
+            C_BLOCK * blocks as f32 * area
+        } else {
+            f32::INFINITY
+        };
+        if n.is_leaf() {
+            cost[i] = [leaf; 8];
+            continue;
+        }
+        let l = n.first as usize;
+        let (cl, cr) = (cost[l], cost[l + 1]);
+        // the children over k slots, k = 2..=8 (a split always exists: an opened node
+        // is never a leaf slot, whatever the costs, NaN included)
+        let mut c = [f32::INFINITY; 8];
+        let mut p = [1u8; 8];
+        for k in 2..=8 {
+            for j in 1..k {
+                let v = cl[j - 1] + cr[k - j - 1];
+                if v < c[k - 1] {
+                    c[k - 1] = v;
+                    p[k - 1] = j as u8;
+                }
+            }
+        }
+        // one slot: a leaf, or a wide node over its children's best eight slots
+        let node = C_NODE * area + c[7];
+        p[0] = if leafable(i) && leaf <= node {
+            LEAF
+        } else {
+            p[7]
+        };
+        c[0] = leaf.min(node);
+        for k in 2..=8 {
+            if c[0] <= c[k - 1] {
+                c[k - 1] = c[0];
+                p[k - 1] = 0;
+            }
+        }
+        cost[i] = c;
+        plan[i] = p;
     }
+    plan
+}
+
+/// The slots of the wide node that binary node `x` becomes (`plan[x][0]` is a split):
+/// the slot roots of its children by the plan, in order, and their count.
+fn wide_slots(nodes: &[BvhNode], plan: &[[u8; 8]], x: u32) -> ([u32; 8], usize) {
+    fn roots(nodes: &[BvhNode], plan: &[[u8; 8]], x: u32, k: usize, out: &mut ([u32; 8], usize)) {
+        match plan[x as usize][k - 1] {
+            j if k == 1 || j == 0 => {
+                out.0[out.1] = x;
+                out.1 += 1;
+            }
+            j => {
+                let l = nodes[x as usize].first;
+                roots(nodes, plan, l, j as usize, out);
+                roots(nodes, plan, l + 1, k - j as usize, out);
+            }
+        }
+    }
+    let j = plan[x as usize][0] as usize;
+    debug_assert!((1..8).contains(&j), "a wide node's split");
+    let l = nodes[x as usize].first;
+    let mut out = ([0u32; 8], 0);
+    roots(nodes, plan, l, j, &mut out);
+    roots(nodes, plan, l + 1, 8 - j, &mut out);
+    out
 }
 
 /// A triangle leaf slot waiting for its blocks: its binary node and primitive span.
@@ -83,30 +167,23 @@ impl WideBvh {
         for i in (0..nodes.len()).rev() {
             let n = &nodes[i];
             span[i] = if n.is_leaf() {
-                debug_assert!(n.first < Span::SPLIT);
                 Span {
-                    first_split: n.first,
+                    first: n.first,
                     slot: Some(n.slot),
                 }
             } else {
                 let l = n.first as usize;
                 let (a, b) = (span[l], span[l + 1]);
-                let (lo, hi) = if a.first() <= b.first() {
-                    (a, b)
-                } else {
-                    (b, a)
-                };
+                let (lo, hi) = if a.first <= b.first { (a, b) } else { (b, a) };
                 let count = a.count() + b.count();
                 match (a.slot, b.slot) {
                     (Some(sa), Some(sb))
                         if sa.kind() == sb.kind()
-                            && lo.first() + lo.count() == hi.first()
+                            && lo.first + lo.count() == hi.first
                             && count <= Slot::MAX_COUNT =>
                     {
-                        let free = sa.kind() != PrimKind::Triangle
-                            || a.count().div_ceil(8) + b.count().div_ceil(8) <= count.div_ceil(8);
                         Span {
-                            first_split: lo.first() | if free { Span::SPLIT } else { 0 },
+                            first: lo.first,
                             slot: Some(Slot::leaf(sa.kind(), count)),
                         }
                     }
@@ -114,84 +191,28 @@ impl WideBvh {
                 }
             };
         }
-        // a binary node becomes a leaf slot when it is a leaf or a small enough run
-        let as_leaf = |i: usize| -> bool {
+        // a binary node can be a leaf slot when it is a leaf or a small enough run
+        let leafable = |i: usize| -> bool {
             let s = span[i];
             s.slot.is_some() && (nodes[i].is_leaf() || s.count() <= MERGE_MAX)
         };
+        let plan = plan(nodes, &span, leafable);
         // top-down: the wide nodes; triangle leaf slots get their block index now and
         // their blocks below. Reserved beyond need (virtual memory only), so never moved.
-        w.nodes = huge_vec(nodes.len() / 4 + 1);
+        // (at most one wide node per interior binary node)
+        w.nodes = huge_vec(nodes.len() / 2 + 1);
         w.nodes.push(WideNode::empty());
         let mut tri_slots: Vec<TriSlot> = Vec::with_capacity(nodes.len() / 8 + 1);
         let mut n_blocks = 0u32;
-        // (wide node to fill, its binary children)
+        // (wide node to fill, its slots' binary nodes, how many)
         let mut work: Vec<(u32, [u32; 8], usize)> = Vec::with_capacity(8 * STACK_SIZE);
-        let root = if as_leaf(0) {
+        let root = if plan[0][0] == LEAF {
             ([0; 8], 1)
         } else {
-            let l = nodes[0].first;
-            ([l, l + 1, 0, 0, 0, 0, 0, 0], 2)
+            wide_slots(nodes, &plan, 0)
         };
         work.push((0, root.0, root.1));
-        // a slot may be opened when it is interior, or a merged leaf whose two halves
-        // take no more triangle blocks than it does (tighter boxes for free)
-        let can_open = |i: usize| -> bool {
-            let s = span[i];
-            s.slot.is_none()
-                || if nodes[i].is_leaf() {
-                    false
-                } else {
-                    s.count() > MERGE_MAX || s.free_split()
-                }
-        };
-        while let Some((wi, mut kids, mut n)) = work.pop() {
-            // open the openable child with the largest surface area while there is room
-            // (on equal areas the last such slot, as `Iterator::max_by`)
-            let mut area = [f32::NEG_INFINITY; 8];
-            let mut open = [false; 8];
-            let mut can = [false; 8];
-            // the children of an openable slot are likely read next: start loading them
-            // (the binary nodes and spans are tens of MB on large meshes, so each read
-            // here is a cache miss)
-            let ahead = |k: usize| {
-                let c = nodes[k].first as usize;
-                if let (Some(n), Some(s)) = (nodes.get(c), span.get(c)) {
-                    prefetch_lines(n);
-                    prefetch_lines(s);
-                }
-            };
-            // (areas only matter for openable slots)
-            for s in 0..n {
-                open[s] = !as_leaf(kids[s] as usize);
-                can[s] = can_open(kids[s] as usize);
-                if can[s] {
-                    area[s] = nodes[kids[s] as usize].bounds().area();
-                    ahead(kids[s] as usize);
-                }
-            }
-            while n < 8 {
-                let mut best = usize::MAX;
-                for s in 0..n {
-                    if can[s] && (best == usize::MAX || area[s].total_cmp(&area[best]).is_ge()) {
-                        best = s;
-                    }
-                }
-                if best == usize::MAX {
-                    break;
-                }
-                let l = nodes[kids[best] as usize].first;
-                for (s, k) in [(best, l), (n, l + 1)] {
-                    kids[s] = k;
-                    open[s] = !as_leaf(k as usize);
-                    can[s] = can_open(k as usize);
-                    if can[s] {
-                        area[s] = nodes[k as usize].bounds().area();
-                        ahead(k as usize);
-                    }
-                }
-                n += 1;
-            }
+        while let Some((wi, kids, n)) = work.pop() {
             let mut node = WideNode::empty();
             let mut lanes = [[0.0f32; 8]; 6];
             for (s, lane) in lanes.iter_mut().enumerate() {
@@ -203,13 +224,13 @@ impl WideBvh {
                     lanes[2 * a][slot] = b.lo[a];
                     lanes[2 * a + 1][slot] = b.hi[a];
                 }
-                if open[slot] {
+                if plan[k as usize][0] != LEAF {
                     let ci = w.nodes.len() as u32;
                     w.nodes.push(WideNode::empty());
                     node.slot[slot] = Slot::INTERIOR;
                     node.child[slot] = ci;
-                    let l = b.first;
-                    work.push((ci, [l, l + 1, 0, 0, 0, 0, 0, 0], 2));
+                    let (kids, n) = wide_slots(nodes, &plan, k);
+                    work.push((ci, kids, n));
                 } else {
                     let s = span[k as usize];
                     let leaf = s.slot.expect("a leaf slot is one run of one kind");
@@ -217,14 +238,14 @@ impl WideBvh {
                     node.child[slot] = if leaf.holds(PrimKind::Triangle) {
                         tri_slots.push(TriSlot {
                             node: k,
-                            first: s.first(),
+                            first: s.first,
                             count: s.count(),
                         });
                         let b0 = n_blocks;
                         n_blocks += s.count().div_ceil(8);
                         b0
                     } else {
-                        s.first()
+                        s.first
                     };
                 }
             }
@@ -232,6 +253,7 @@ impl WideBvh {
             w.nodes[wi as usize] = node;
         }
         drop(span);
+        drop(plan);
         w.blocks = huge_vec(n_blocks as usize);
         for (i, &t) in tri_slots.iter().enumerate() {
             // a few slots ahead: their binary node (its subtree's boxes) and triangles
@@ -332,6 +354,203 @@ impl WideBvh {
                 count: chunk.len() as u32,
                 one_leaf: root.is_leaf(),
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build;
+    use crate::geometry::sphere::Sphere32;
+    use crate::geometry::triangle::Triangle32;
+    use glam::{DVec3, Vec3};
+    use std::collections::HashMap;
+
+    /// `n` small triangles in clusters of a few, and `spheres` spheres among them (so that
+    /// some subtrees mix kinds), from a fixed seed.
+    fn prims(seed: u64, n: usize, spheres: usize) -> PrimSet {
+        let mut s = seed;
+        let mut r = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut centre = Vec3::ZERO;
+        let tris = (0..n)
+            .map(|i| {
+                if i % 5 == 0 {
+                    centre = Vec3::new(r(), r(), r()) * 10.0;
+                }
+                let c = centre + Vec3::new(r(), r(), r());
+                let e = 0.05 + r() * 0.5;
+                Triangle32 {
+                    v: [
+                        c,
+                        c + Vec3::new(e, r() * e, 0.0),
+                        c + Vec3::new(0.0, e, r() * e),
+                    ],
+                }
+            })
+            .collect();
+        let mut p = PrimSet::from_triangles(tris);
+        for k in 0..spheres {
+            let c = DVec3::new(r() as f64, r() as f64, r() as f64) * 10.0;
+            p.spheres
+                .push(Sphere32::new(c, 0.1 + r() as f64 * 0.3, DVec3::ZERO));
+            p.sphere_obj.push(1 + k as u32);
+        }
+        p
+    }
+
+    /// The cost the plan minimises, of the wide tree built: C_NODE times the area of
+    /// every wide node, C_BLOCK times blocks times area for every leaf slot.
+    fn wide_cost(w: &WideBvh) -> f64 {
+        let area = |b: &[[f32; 8]; 6], s: usize| {
+            let [lo, hi] = [0, 1].map(|e| Vec3::new(b[e][s], b[2 + e][s], b[4 + e][s]));
+            crate::math::aabb::Aabb { lo, hi }.area() as f64
+        };
+        let mut cost = 0.0;
+        let mut todo = vec![(0usize, None::<f64>)];
+        while let Some((i, own)) = todo.pop() {
+            let node = &w.nodes[i];
+            let b = node.bounds.map(|v| v.to_array());
+            let used: Vec<usize> = (0..8).filter(|&s| b[0][s] <= b[1][s]).collect();
+            assert!(!used.is_empty(), "wide node {i} has no slot");
+            // the root's own box: the union of its slots
+            let root_area = || {
+                let lo = used.iter().fold(Vec3::INFINITY, |m, &s| {
+                    m.min(Vec3::new(b[0][s], b[2][s], b[4][s]))
+                });
+                let hi = used.iter().fold(Vec3::NEG_INFINITY, |m, &s| {
+                    m.max(Vec3::new(b[1][s], b[3][s], b[5][s]))
+                });
+                crate::math::aabb::Aabb { lo, hi }.area() as f64
+            };
+            let one_leaf_root = i == 0 && used.len() == 1 && !node.slot[used[0]].is_interior();
+            if !one_leaf_root {
+                assert!(used.len() >= 2, "wide node {i} has {} slot", used.len());
+                cost += C_NODE as f64 * own.unwrap_or_else(root_area);
+            }
+            for &s in &used {
+                let slot = node.slot[s];
+                if slot.is_interior() {
+                    todo.push((node.child[s] as usize, Some(area(&b, s))));
+                } else {
+                    let n = slot.count();
+                    let blocks = if slot.holds(PrimKind::Triangle) {
+                        n.div_ceil(8)
+                    } else {
+                        n
+                    };
+                    cost += C_BLOCK as f64 * blocks as f64 * area(&b, s);
+                }
+            }
+        }
+        cost
+    }
+
+    /// The least cost over every collapse of the binary tree, by enumerating each wide
+    /// node's cuts (sets of at most eight subtrees covering its two children) outright.
+    fn least_cost(nodes: &[BvhNode]) -> f64 {
+        // (kind, first, count) of a subtree when one contiguous run of one kind
+        fn run(nodes: &[BvhNode], i: usize) -> Option<(PrimKind, u32, u32)> {
+            let n = &nodes[i];
+            if n.is_leaf() {
+                return Some((n.slot.kind(), n.first, n.count()));
+            }
+            let l = n.first as usize;
+            let (a, b) = (run(nodes, l)?, run(nodes, l + 1)?);
+            let (lo, hi) = if a.1 <= b.1 { (a, b) } else { (b, a) };
+            (a.0 == b.0 && lo.1 + lo.2 == hi.1 && a.2 + b.2 <= Slot::MAX_COUNT).then_some((
+                a.0,
+                lo.1,
+                a.2 + b.2,
+            ))
+        }
+        // every cut of subtree i into at most eight subtrees, each as (its number of
+        // subtrees, the sum of their least costs)
+        type Memo = (HashMap<usize, f64>, HashMap<usize, Vec<(usize, f64)>>);
+        fn cuts(nodes: &[BvhNode], i: usize, memo: &mut Memo) -> Vec<(usize, f64)> {
+            if let Some(c) = memo.1.get(&i) {
+                return c.clone();
+            }
+            let mut out = vec![(1, best(nodes, i, memo))];
+            let n = &nodes[i];
+            if !n.is_leaf() {
+                let l = n.first as usize;
+                let (ca, cb) = (cuts(nodes, l, memo), cuts(nodes, l + 1, memo));
+                for &(na, sa) in &ca {
+                    for &(nb, sb) in &cb {
+                        if na + nb <= 8 {
+                            out.push((na + nb, sa + sb));
+                        }
+                    }
+                }
+            }
+            memo.1.insert(i, out.clone());
+            out
+        }
+        fn best(nodes: &[BvhNode], i: usize, memo: &mut Memo) -> f64 {
+            if let Some(&c) = memo.0.get(&i) {
+                return c;
+            }
+            let n = &nodes[i];
+            let area = n.bounds().area() as f64;
+            let mut c = f64::INFINITY;
+            if let Some((kind, _, count)) = run(nodes, i)
+                && (n.is_leaf() || count <= MERGE_MAX)
+            {
+                let blocks = if kind == PrimKind::Triangle {
+                    count.div_ceil(8)
+                } else {
+                    count
+                };
+                c = C_BLOCK as f64 * blocks as f64 * area;
+            }
+            if !n.is_leaf() {
+                // a wide node: the least cost of its slots over the cuts of its children
+                let l = n.first as usize;
+                let (ca, cb) = (cuts(nodes, l, memo), cuts(nodes, l + 1, memo));
+                let mut slots = f64::INFINITY;
+                for &(na, sa) in &ca {
+                    for &(nb, sb) in &cb {
+                        if na + nb <= 8 {
+                            slots = slots.min(sa + sb);
+                        }
+                    }
+                }
+                c = c.min(C_NODE as f64 * area + slots);
+            }
+            memo.0.insert(i, c);
+            c
+        }
+        best(nodes, 0, &mut (HashMap::new(), HashMap::new()))
+    }
+
+    /// The collapse builds a wide tree of the least cost the plan's heuristic allows,
+    /// found here by enumerating every wide node's cuts instead (mixed kinds, merged
+    /// leaves, leaves of one binary leaf), and every wide node has at least two slots.
+    #[test]
+    fn the_collapse_is_the_least_cost_wide_tree() {
+        for (seed, n, spheres) in [
+            (1, 40, 0),
+            (2, 120, 0),
+            (3, 90, 12),
+            (4, 160, 20),
+            (5, 9, 0),
+            (6, 3, 2),
+        ] {
+            let mut p = prims(seed, n, spheres);
+            let nodes = build::build(&mut p);
+            let w = WideBvh::collapse(&nodes, &p);
+            let (got, least) = (wide_cost(&w), least_cost(&nodes));
+            assert!(least.is_finite() && least > 0.0, "seed {seed}: {least}");
+            assert!(
+                (got - least).abs() <= 1e-4 * least.max(1e-9),
+                "seed {seed}: the wide tree costs {got}, the least cost is {least}"
+            );
         }
     }
 }
