@@ -165,9 +165,10 @@ struct TriSlot {
 impl WideBvh {
     /// Collapses the binary tree `nodes` over `prims` (in leaf order) into the wide tree.
     ///
-    /// Three passes: subtree spans bottom-up (one sweep over the binary nodes); the wide
-    /// nodes top-down, which counts the triangle blocks; the blocks, written once into
-    /// an array of exactly that size (no growth, no copy).
+    /// Four passes: subtree spans bottom-up (one sweep over the binary nodes); the
+    /// [`plan`] (one walk in post order); the wide nodes top-down by the plan, which
+    /// counts the triangle blocks; the blocks, written once into an array of exactly that
+    /// size (no growth, no copy).
     pub fn collapse(nodes: &[BvhNode], prims: &PrimSet) -> WideBvh {
         let mut w = WideBvh::default();
         if nodes.is_empty() {
