@@ -53,16 +53,27 @@ const C_BLOCK: f32 = 0.6;
 /// `plan[i][0]` of a binary node that becomes a leaf slot.
 const LEAF: u8 = 0;
 
+/// The blocks a leaf slot's walk tests: eight triangles a block, one other primitive.
+#[inline]
+fn blocks(leaf: Slot) -> u32 {
+    if leaf.holds(PrimKind::Triangle) {
+        leaf.count().div_ceil(8)
+    } else {
+        leaf.count()
+    }
+}
+
 /// The collapse's choices, per binary node `i`, that minimise the surface area cost of
 /// the wide tree (the optimal collapse of Ylitie, Karras and Laine, "Efficient
 /// Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", 2017, with this
 /// tree's leaves): `plan[i][0]` is [`LEAF`] when subtree `i` in one slot is a leaf, else
 /// the slots of the wide node it becomes given to its left child (the right child gets
 /// the rest of 8); `plan[i][k - 1]`, k in 2..=8, is 0 when subtree `i` given k slots
-/// takes one, else the slots given to its left child. One walk of the binary tree in
+/// takes one, else the slots given to its left child. `leaf_slot(i)`: the slot of
+/// subtree `i` as one leaf, `None` when it cannot be one. One walk of the binary tree in
 /// post order, each subtree's eight costs kept on a stack until its parent takes them
-/// (a few kilobytes, where an array of them took 32 bytes a node).
-fn plan(nodes: &[BvhNode], span: &[Span], leafable: impl Fn(usize) -> bool) -> Vec<[u8; 8]> {
+/// (a few kilobytes, not 32 bytes a node).
+fn plan(nodes: &[BvhNode], leaf_slot: impl Fn(usize) -> Option<Slot>) -> Vec<[u8; 8]> {
     let mut plan = vec![[0u8; 8]; nodes.len()];
     // c[k - 1]: least cost of a subtree in at most k slots, for the subtrees done whose
     // parent is not (a left child's below its right sibling's)
@@ -78,16 +89,8 @@ fn plan(nodes: &[BvhNode], span: &[Span], leafable: impl Fn(usize) -> bool) -> V
         }
         let i = i as usize;
         let area = n.bounds().area();
-        let leaf = if leafable(i) {
-            let (s, count) = (span[i], span[i].count());
-            let blocks = match s.slot {
-                Some(slot) if slot.holds(PrimKind::Triangle) => count.div_ceil(8),
-                _ => count,
-            };
-            C_BLOCK * blocks as f32 * area
-        } else {
-            f32::INFINITY
-        };
+        let as_leaf = leaf_slot(i);
+        let leaf = as_leaf.map_or(f32::INFINITY, |l| C_BLOCK * blocks(l) as f32 * area);
         if n.is_leaf() {
             costs.push([leaf; 8]);
             continue;
@@ -95,8 +98,8 @@ fn plan(nodes: &[BvhNode], span: &[Span], leafable: impl Fn(usize) -> bool) -> V
         let cr = costs.pop().expect("the right child's costs");
         let cl = costs.pop().expect("the left child's costs");
         // the children over k slots, k = 2..=8 (a split always exists: an opened node
-        // is never a leaf slot, whatever the costs, NaN included)
-        // (selects, not branches: which split wins is data, not a pattern)
+        // is never a leaf slot, whatever the costs, NaN included; selects, not branches:
+        // which split wins is data, not a pattern)
         let mut c = [f32::INFINITY; 8];
         let mut p = [1u8; 8];
         for k in 2..=8 {
@@ -111,7 +114,7 @@ fn plan(nodes: &[BvhNode], span: &[Span], leafable: impl Fn(usize) -> bool) -> V
         }
         // one slot: a leaf, or a wide node over its children's best eight slots
         let node = C_NODE * area + c[7];
-        p[0] = if leafable(i) && leaf <= node {
+        p[0] = if as_leaf.is_some() && leaf <= node {
             LEAF
         } else {
             p[7]
@@ -209,14 +212,12 @@ impl WideBvh {
             };
         }
         // a binary node can be a leaf slot when it is a leaf or a small enough run
-        let leafable = |i: usize| -> bool {
-            let s = span[i];
-            s.slot.is_some() && (nodes[i].is_leaf() || s.count() <= MERGE_MAX)
-        };
-        let plan = plan(nodes, &span, leafable);
+        let plan = plan(nodes, |i| {
+            (span[i].slot).filter(|s| nodes[i].is_leaf() || s.count() <= MERGE_MAX)
+        });
         // top-down: the wide nodes; triangle leaf slots get their block index now and
-        // their blocks below. Reserved beyond need (virtual memory only), so never moved.
-        // (at most one wide node per interior binary node)
+        // their blocks below. Reserved beyond need (at most one wide node per interior
+        // binary node; virtual memory only), so never moved.
         w.nodes = huge_vec(nodes.len() / 2 + 1);
         w.nodes.push(WideNode::empty());
         let mut tri_slots: Vec<TriSlot> = Vec::with_capacity(nodes.len() / 8 + 1);
@@ -259,7 +260,7 @@ impl WideBvh {
                             count: s.count(),
                         });
                         let b0 = n_blocks;
-                        n_blocks += s.count().div_ceil(8);
+                        n_blocks += blocks(leaf);
                         b0
                     } else {
                         s.first
@@ -455,13 +456,7 @@ mod tests {
                 if slot.is_interior() {
                     todo.push((node.child[s] as usize, Some(area(&b, s))));
                 } else {
-                    let n = slot.count();
-                    let blocks = if slot.holds(PrimKind::Triangle) {
-                        n.div_ceil(8)
-                    } else {
-                        n
-                    };
-                    cost += C_BLOCK as f64 * blocks as f64 * area(&b, s);
+                    cost += C_BLOCK as f64 * blocks(slot) as f64 * area(&b, s);
                 }
             }
         }
@@ -519,12 +514,7 @@ mod tests {
             if let Some((kind, _, count)) = run(nodes, i)
                 && (n.is_leaf() || count <= MERGE_MAX)
             {
-                let blocks = if kind == PrimKind::Triangle {
-                    count.div_ceil(8)
-                } else {
-                    count
-                };
-                c = C_BLOCK as f64 * blocks as f64 * area;
+                c = C_BLOCK as f64 * blocks(Slot::leaf(kind, count)) as f64 * area;
             }
             if !n.is_leaf() {
                 // a wide node: the least cost of its slots over the cuts of its children
