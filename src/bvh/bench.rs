@@ -743,8 +743,8 @@ pub struct Built {
 /// tree, then its collapse), the first over `tris`, the others over what `reload`
 /// gives (the same mesh read again, untimed). Each build drops the tree before it
 /// first and takes its triangles: no copy of the mesh or second tree stays beside the
-/// one being built (a copy of torus1m's triangles kept for the next build was 36 MB of
-/// bench-trace's peak memory; the whole mesh, 24 MB).
+/// one being built (a copy of torus1m's triangles kept for the next build would add
+/// 36 MB to bench-trace's peak memory, the mesh itself 24 MB).
 pub fn timed_build<E>(
     tris: Vec<Triangle32>,
     mut reload: impl FnMut() -> Result<Vec<Triangle32>, E>,
