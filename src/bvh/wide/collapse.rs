@@ -382,19 +382,15 @@ mod tests {
     use crate::bvh::build;
     use crate::geometry::sphere::Sphere32;
     use crate::geometry::triangle::Triangle32;
+    use crate::math::test_rng::Xorshift;
     use glam::{DVec3, Vec3};
     use std::collections::HashMap;
 
     /// `n` small triangles in clusters of a few, and `spheres` spheres among them (so that
     /// some subtrees mix kinds), from a fixed seed.
     fn prims(seed: u64, n: usize, spheres: usize) -> PrimSet {
-        let mut s = seed;
-        let mut r = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = Xorshift(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let mut r = move || rng.f32();
         let mut centre = Vec3::ZERO;
         let tris = (0..n)
             .map(|i| {
@@ -484,22 +480,22 @@ mod tests {
         // every cut of subtree i into at most eight subtrees, each as (its number of
         // subtrees, the sum of their least costs)
         type Memo = (HashMap<usize, f64>, HashMap<usize, Vec<(usize, f64)>>);
+        // the cuts of both children of binary node i together, at most eight subtrees
+        fn children_cuts(nodes: &[BvhNode], i: usize, memo: &mut Memo) -> Vec<(usize, f64)> {
+            let l = nodes[i].first as usize;
+            let (ca, cb) = (cuts(nodes, l, memo), cuts(nodes, l + 1, memo));
+            (ca.iter())
+                .flat_map(|&(na, sa)| cb.iter().map(move |&(nb, sb)| (na + nb, sa + sb)))
+                .filter(|&(n, _)| n <= 8)
+                .collect()
+        }
         fn cuts(nodes: &[BvhNode], i: usize, memo: &mut Memo) -> Vec<(usize, f64)> {
             if let Some(c) = memo.1.get(&i) {
                 return c.clone();
             }
             let mut out = vec![(1, best(nodes, i, memo))];
-            let n = &nodes[i];
-            if !n.is_leaf() {
-                let l = n.first as usize;
-                let (ca, cb) = (cuts(nodes, l, memo), cuts(nodes, l + 1, memo));
-                for &(na, sa) in &ca {
-                    for &(nb, sb) in &cb {
-                        if na + nb <= 8 {
-                            out.push((na + nb, sa + sb));
-                        }
-                    }
-                }
+            if !nodes[i].is_leaf() {
+                out.extend(children_cuts(nodes, i, memo));
             }
             memo.1.insert(i, out.clone());
             out
@@ -518,16 +514,8 @@ mod tests {
             }
             if !n.is_leaf() {
                 // a wide node: the least cost of its slots over the cuts of its children
-                let l = n.first as usize;
-                let (ca, cb) = (cuts(nodes, l, memo), cuts(nodes, l + 1, memo));
-                let mut slots = f64::INFINITY;
-                for &(na, sa) in &ca {
-                    for &(nb, sb) in &cb {
-                        if na + nb <= 8 {
-                            slots = slots.min(sa + sb);
-                        }
-                    }
-                }
+                let slots =
+                    (children_cuts(nodes, i, memo).iter()).fold(f64::INFINITY, |m, c| m.min(c.1));
                 c = c.min(C_NODE as f64 * area + slots);
             }
             memo.0.insert(i, c);
