@@ -702,9 +702,10 @@ pub struct AccelBytes {
     pub binary_nodes: usize,
     /// The 8-wide tree's nodes.
     pub wide_nodes: usize,
-    /// The 8-wide tree's triangle blocks (copies of the triangles, SoA, with the
-    /// binary leaves' boxes per lane).
+    /// The 8-wide tree's triangle blocks (copies of the triangles, SoA).
     pub wide_blocks: usize,
+    /// The binary leaves' boxes per lane of the blocks.
+    pub leaf_boxes: usize,
     /// The primitive arrays in leaf order (triangles and their object indices).
     pub prims: usize,
 }
@@ -717,6 +718,7 @@ impl AccelBytes {
             binary_nodes: size_of_val(&bvh.nodes[..]),
             wide_nodes: size_of_val(&bvh.wide.nodes[..]),
             wide_blocks: size_of_val(&bvh.wide.blocks[..]),
+            leaf_boxes: size_of_val(&bvh.wide.leaf_boxes[..]),
             prims: size_of_val(&p.triangles[..])
                 + size_of_val(&p.triangle_obj[..])
                 + size_of_val(&p.spheres[..])
@@ -727,7 +729,7 @@ impl AccelBytes {
     }
 
     pub fn total(&self) -> usize {
-        self.binary_nodes + self.wide_nodes + self.wide_blocks + self.prims
+        self.binary_nodes + self.wide_nodes + self.wide_blocks + self.leaf_boxes + self.prims
     }
 }
 
@@ -911,11 +913,12 @@ pub fn run(
         let per = |b: usize| b as f64 / ntris.max(1) as f64;
         let _ = writeln!(
             log,
-            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, triangles in leaf order {:.1}{}",
+            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, their leaf boxes {:.1}, triangles in leaf order {:.1}{}",
             per(bytes.total()),
             per(bytes.binary_nodes),
             per(bytes.wide_nodes),
             per(bytes.wide_blocks),
+            per(bytes.leaf_boxes),
             per(bytes.prims),
             peak()
         );

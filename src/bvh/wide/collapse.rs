@@ -273,6 +273,7 @@ impl WideBvh {
         drop(span);
         drop(plan);
         w.blocks = huge_vec(n_blocks as usize);
+        w.leaf_boxes = huge_vec(n_blocks as usize);
         for (i, &t) in tri_slots.iter().enumerate() {
             // a few slots ahead: their binary node (its subtree's boxes) and triangles
             if let Some(a) = tri_slots.get(i + 4) {
@@ -304,14 +305,15 @@ impl WideBvh {
             w.push_blocks(nodes, prims, t);
         }
         debug_assert_eq!(w.blocks.len(), n_blocks as usize);
+        debug_assert_eq!(w.leaf_boxes.len(), n_blocks as usize);
         w.prefetches = w.walked_bytes() > PREFETCH_FROM;
         w.stream_steps = w.walked_bytes() >= STREAM_FROM;
         w.stream_any_hit_steps = w.walked_bytes() >= STREAM_ANY_HIT_FROM;
         w
     }
 
-    /// Packs the triangles of leaf slot `t` into blocks of 8, each lane with the box of
-    /// the binary leaf its triangle came from.
+    /// Packs the triangles of leaf slot `t` into blocks of 8, and each lane's box of the
+    /// binary leaf its triangle came from into `leaf_boxes`.
     fn push_blocks(&mut self, nodes: &[BvhNode], prims: &PrimSet, t: TriSlot) {
         const EMPTY: [[f32; 8]; 6] = [
             [f32::INFINITY; 8],
@@ -367,11 +369,11 @@ impl WideBvh {
             };
             self.blocks.push(TriBlock {
                 tri: Triangle8::new(chunk),
-                bounds: bounds.map(f32x8::new),
                 first: t.first + 8 * k as u32,
                 count: chunk.len() as u32,
                 one_leaf: root.is_leaf(),
             });
+            self.leaf_boxes.push(bounds.map(f32x8::new));
         }
     }
 }

@@ -78,33 +78,27 @@ impl WideNode {
 
 /// Up to eight triangles of one leaf, SoA, with the index of the first in
 /// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
-/// that never hits), and per lane the box of the binary leaf the triangle came from
-/// (same layout as [`WideNode::bounds`]; padding lanes empty). 512 B = eight cache lines:
-/// the triangles and the counts in the first five, the leaf boxes in the last three.
+/// that never hits). 320 B = five cache lines. Each lane's binary leaf box is kept
+/// beside it, in [`WideBvh::leaf_boxes`].
 ///
 /// A lane's hit counts only when the ray also passes its binary leaf's box: then a
 /// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
 /// monotone under box containment, so passing the leaf's box implies passing every
 /// ancestor's), even for a ray lying in a box face with a ±0 direction component. A
 /// block of one binary leaf (`one_leaf`) has the slot's own box in every lane, already
-/// passed.
+/// passed by a single ray.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriBlock {
     pub tri: Triangle8,
     pub first: u32,
     pub count: u32,
-    /// All lanes come from one binary leaf, whose box is the slot's: the walks skip
-    /// the lane boxes.
+    /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
+    /// walks skip the lane boxes.
     pub one_leaf: bool,
-    pub bounds: [f32x8; 6],
 }
 
-const _: () = assert!(std::mem::size_of::<TriBlock>() == 512);
-// the triangles and what every hit reads (`first`, `one_leaf`) in the first five lines,
-// the leaf boxes in the last three: a hit reads them only where its triangle's own box
-// cannot decide (`walk_1::BoxRay::leaf_lanes`)
-const _: () = assert!(std::mem::offset_of!(TriBlock, one_leaf) < 5 * 64);
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 320);
 
 /// The 8-wide tree over the same primitives as the binary one (it owns copies of the
 /// triangles in blocks; the primitive codes it reports index `PrimSet`).
@@ -112,6 +106,12 @@ const _: () = assert!(std::mem::offset_of!(TriBlock, one_leaf) < 5 * 64);
 pub struct WideBvh {
     pub nodes: Vec<WideNode>,
     pub blocks: Vec<TriBlock>,
+    /// Per block (the same index), each lane's binary leaf box, in the layout of
+    /// [`WideNode::bounds`] (padding lanes empty). Apart from the blocks: the frustum
+    /// walks read them for every block they reach (which triangles some lane may
+    /// hit), the single-ray walks only for a hit that misses its triangle's own box
+    /// (`walk_1::BoxRay::leaf_lanes`), so the blocks they walk lie closer.
+    pub leaf_boxes: Vec<[f32x8; 6]>,
     /// Length of the diagonal of the root box (0 when empty): the packet walk's origin
     /// spread limit scales with it (`walk_x8::Frustum::new`).
     pub diagonal: f32,
@@ -130,32 +130,34 @@ pub struct WideBvh {
 
 /// Size of the walked arrays (wide nodes and triangle blocks) from which the
 /// single-ray walks prefetch children: incoherent single rays on tori of 6 000
-/// triangles (0.5 MiB walked) run faster without, from 10 000 (0.9 MiB) with
-/// (`benches/README.md`).
-pub const PREFETCH_FROM: usize = 768 << 10;
+/// triangles (0.3 MiB walked) run faster without, from 10 000 (0.6 MiB) with
+/// (`benches/README.md`; measured with the leaf boxes inside the blocks, of which the
+/// walks read the same five lines: the sizes here leave the leaf boxes out, and each
+/// limit puts the same trees on the same side).
+pub const PREFETCH_FROM: usize = 480 << 10;
 
 /// Size of the walked arrays from which a stream's closest-hit walks are stepped in turn.
 /// Incoherent rays, stepped stream over one walk after another (`mode=1`): tori of 6k,
-/// 20k and 40k triangles (up to 3.7 MB walked) 0.92, 0.87 and 0.94; torus100k (9.2 MB)
+/// 20k and 40k triangles (up to 2.4 MB walked) 0.92, 0.87 and 0.94; torus100k (6.4 MB)
 /// 1.09; over the better of `mode=1` and `mode=16`, torus1m 1.12 (`benches/README.md`).
 /// On a host with 2 MiB of L2 per core.
-pub const STREAM_FROM: usize = 6 << 20;
+pub const STREAM_FROM: usize = 3840 << 10;
 
 /// [`STREAM_FROM`] for any-hit walks, which mostly end early: incoherent shadow rays
 /// on tori of 100k, 300k, 700k and 1M triangles ran 0.94, 1.00, 1.13 and 1.25 of one
 /// walk after another.
-pub const STREAM_ANY_HIT_FROM: usize = 24 << 20;
+pub const STREAM_ANY_HIT_FROM: usize = 15 << 20;
 
 /// Depth limit of the wide traversal stacks: the wide tree is never deeper than the
 /// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
 pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
 
 impl WideBvh {
-    /// Asks for a child's node or first triangle block (`whole`: with its leaf boxes)
-    /// to be brought into the cache: the slab test reads the box lines, then the child
-    /// or triangle lines, each a miss of its own on incoherent rays without this.
+    /// Asks for a child's node or first triangle block (`boxes`: and its leaf boxes) to
+    /// be brought into the cache: the slab test reads the box lines, then the child or
+    /// triangle lines, each a miss of its own on incoherent rays without this.
     #[inline(always)]
-    pub(super) fn prefetch(&self, r: SlotRef, whole: bool) {
+    pub(super) fn prefetch(&self, r: SlotRef, boxes: bool) {
         if r.slot.is_interior() {
             if let Some(n) = self.nodes.get(r.child as usize) {
                 prefetch_lines(n);
@@ -163,10 +165,9 @@ impl WideBvh {
         } else if r.slot.holds(PrimKind::Triangle)
             && let Some(b) = self.blocks.get(r.child as usize)
         {
-            if whole {
-                prefetch_lines(b);
-            } else {
-                prefetch_lines(&b.tri);
+            prefetch_lines(b);
+            if boxes && let Some(lb) = self.leaf_boxes.get(r.child as usize) {
+                prefetch_lines(lb);
             }
         }
     }
@@ -182,15 +183,16 @@ impl WideBvh {
 
     /// [`WideBvh::prefetch`] of the children `bits` of `node`.
     #[inline(always)]
-    pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, whole: bool) {
+    pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, boxes: bool) {
         while bits != 0 {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            self.prefetch(node.get(s), whole);
+            self.prefetch(node.get(s), boxes);
         }
     }
 
-    /// Bytes of the arrays the walks read: the wide nodes and the triangle blocks.
+    /// Bytes of the arrays the single-ray walks read: the wide nodes and the triangle
+    /// blocks (not their leaf boxes).
     pub fn walked_bytes(&self) -> usize {
         std::mem::size_of_val(&self.nodes[..]) + std::mem::size_of_val(&self.blocks[..])
     }

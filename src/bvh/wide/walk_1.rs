@@ -115,10 +115,10 @@ impl BoxRay {
     /// union, rounded outward, `Aabb::outward`), and the slab test is monotone under
     /// containment, so a lane that passes its triangle's box passes its leaf box. Only a
     /// lane that misses its triangle's box (a hit at the box's edge, within rounding)
-    /// reads the leaf boxes, three lines that the walk would otherwise fetch at nearly
-    /// every hit.
+    /// reads the leaf boxes (`leaf`, `WideBvh::leaf_boxes` of the block), three lines
+    /// that the walk would otherwise fetch at nearly every hit.
     #[inline(always)]
-    fn leaf_lanes(&self, b: &TriBlock, m: Mask8, t_max: f32) -> Mask8 {
+    fn leaf_lanes(&self, b: &TriBlock, leaf: &[f32x8; 6], m: Mask8, t_max: f32) -> Mask8 {
         if b.one_leaf {
             return m;
         }
@@ -141,7 +141,7 @@ impl BoxRay {
         if pass.bits() == m.bits() {
             return m;
         }
-        pass | (m & self.test(&b.bounds, t_max).0)
+        pass | (m & self.test(leaf, t_max).0)
     }
 
     /// The slab test of `BvhNode::intersect_1` on the eight slots: bit i of the mask is
@@ -480,13 +480,15 @@ impl Bvh {
         let count = leaf.slot.count() as usize;
         steps.leaf(PrimKind::Triangle, count, 1);
         let first = leaf.child as usize;
-        for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
+        let w = &self.wide;
+        let end = first + count.div_ceil(8);
+        for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
             // the leaf boxes only for lanes that hit (`BoxRay::leaf_lanes`)
             let (m, t, u, v) = T::intersect_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, hit.t);
             if m.none() {
                 continue;
             }
-            let mut bits = wr.boxes.leaf_lanes(b, m, hit.t).bits();
+            let mut bits = wr.boxes.leaf_lanes(b, leaf, m, hit.t).bits();
             let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
             while bits != 0 {
                 let l = bits.trailing_zeros() as usize;
@@ -607,11 +609,13 @@ impl Bvh {
         if kind != PrimKind::Triangle {
             return self.prims.occluded_1::<T>(kind, first, count, wr.r, t_max);
         }
-        self.wide.blocks[first..first + count.div_ceil(8)]
-            .iter()
-            .any(|b| {
+        let w = &self.wide;
+        let end = first + count.div_ceil(8);
+        (w.blocks[first..end].iter())
+            .zip(&w.leaf_boxes[first..end])
+            .any(|(b, leaf)| {
                 let m = T::occluded_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, t_max);
-                m.any() && wr.boxes.leaf_lanes(b, m, t_max).any()
+                m.any() && wr.boxes.leaf_lanes(b, leaf, m, t_max).any()
             })
     }
 }
@@ -656,27 +660,29 @@ mod tests {
             flat(5.0, 6.0, 5.0, 6.0),   // lane 2: both missed
             flat(-1.0, 1.0, -1.0, 1.0), // lane 3: met, but not in the mask
         ];
+        let leaf = lane_boxes(&[
+            [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
+            [[-2.0, 6.0], [-2.0, 6.0], [-1.0, 0.0]],
+            [[4.0, 7.0], [4.0, 7.0], [-1.0, 1.0]],
+            [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
+        ]);
         let block = |one_leaf| TriBlock {
             tri: Triangle8::new(&tris),
-            bounds: lane_boxes(&[
-                [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
-                [[-2.0, 6.0], [-2.0, 6.0], [-1.0, 0.0]],
-                [[4.0, 7.0], [4.0, 7.0], [-1.0, 1.0]],
-                [[-1.0, 1.0], [-1.0, 1.0], [0.0, 0.0]],
-            ]),
             first: 0,
             count: tris.len() as u32,
             one_leaf,
         };
         let m = Mask8::from_bits(0b0111);
         assert_eq!(
-            boxes.leaf_lanes(&block(false), m, f32::INFINITY).bits(),
+            boxes
+                .leaf_lanes(&block(false), &leaf, m, f32::INFINITY)
+                .bits(),
             0b0011
         );
         // t_max before the boxes: none
-        assert_eq!(boxes.leaf_lanes(&block(false), m, 0.5).bits(), 0);
+        assert_eq!(boxes.leaf_lanes(&block(false), &leaf, m, 0.5).bits(), 0);
         // a block of one binary leaf: the slot's box, already passed
-        assert_eq!(boxes.leaf_lanes(&block(true), m, 0.5).bits(), 0b0111);
+        assert_eq!(boxes.leaf_lanes(&block(true), &leaf, m, 0.5).bits(), 0b0111);
     }
 
     /// Checks on built trees that `leaf_lanes` keeps exactly the lanes of `m` that pass
@@ -686,12 +692,18 @@ mod tests {
         let mut merged = 0;
         for r in rays {
             let boxes = BoxRay::new(r);
-            for b in bvh.wide.blocks.iter().filter(|b| !b.one_leaf) {
+            let w = &bvh.wide;
+            for (b, leaf) in w
+                .blocks
+                .iter()
+                .zip(&w.leaf_boxes)
+                .filter(|(b, _)| !b.one_leaf)
+            {
                 merged += 1;
                 let m = Mask8::from_bits((1u32 << b.count) - 1);
                 for t_max in [f32::INFINITY, 1.0, 0.25] {
-                    let want = m & boxes.test(&b.bounds, t_max).0;
-                    let got = boxes.leaf_lanes(b, m, t_max);
+                    let want = m & boxes.test(leaf, t_max).0;
+                    let got = boxes.leaf_lanes(b, leaf, m, t_max);
                     assert_eq!(got.bits(), want.bits(), "{r:?} block {}", b.first);
                 }
             }

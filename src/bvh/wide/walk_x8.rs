@@ -10,7 +10,7 @@
 //! behind every active lane's nearest hit. Nothing is decided per lane above the
 //! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
 //! own slab test meets its box ([`entered_leaves`]). In a leaf, the frustum test
-//! of a triangle block's per-lane binary leaf boxes picks the triangles to test (all of
+//! of a triangle block's per-lane binary leaf boxes (`WideBvh::leaf_boxes`) picks the triangles to test (all of
 //! them in a block of one binary leaf, whose box the frustum has passed); each is
 //! tested against the whole packet with the packet kernel
 //! (`TriangleKernel::intersect_splat_x8`, the binary packet walk's, or at 16 lanes its
@@ -215,14 +215,14 @@ impl Frustum {
     /// them in a block of one binary leaf (its box is the slot's, which the walk's
     /// frustum has passed: this one, or under [`Bvh::frustum_walk_n`] the union of it
     /// and others, so a few more candidates), else those whose leaf box passes
-    /// [`Frustum::test`]. A candidate's hit still counts only for the lanes that pass
-    /// its leaf box by their own test.
+    /// [`Frustum::test`] (`leaf`: the block's `WideBvh::leaf_boxes`). A candidate's hit
+    /// still counts only for the lanes that pass its leaf box by their own test.
     #[inline(always)]
-    fn block_candidates<const OCT: u32>(&self, b: &TriBlock, t_hi: f32) -> u32 {
+    fn block_candidates<const OCT: u32>(&self, b: &TriBlock, leaf: &[f32x8; 6], t_hi: f32) -> u32 {
         if b.one_leaf {
             (1 << b.count) - 1
         } else {
-            self.test::<OCT>(&b.bounds, t_hi).0
+            self.test::<OCT>(leaf, t_hi).0
         }
     }
 }
@@ -654,11 +654,13 @@ impl Bvh {
         // by the caller: reduced there, not after every hit recorded (a 16-lane reduction
         // is a chain of eight steps)
         let (mut t_hi, mut dirty) = (t_hi, false);
-        for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
+        let w = &self.wide;
+        let end = first + count.div_ceil(8);
+        for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
             if dirty {
                 (t_hi, dirty) = (max_in(P::hit_t(hit), act), false);
             }
-            let mut bits = fr.block_candidates::<OCT>(b, t_hi);
+            let mut bits = fr.block_candidates::<OCT>(b, leaf, t_hi);
             // one origin (a camera's packet) and a candidate: the block's vertices
             // translated to it once, eight triangles at a time
             let moved = fr
@@ -679,7 +681,7 @@ impl Bvh {
                 // only lanes that pass the triangle's binary leaf box (module doc); the
                 // rays fetched here, where a lane hit (most candidates hit none)
                 let [o, _, inv] = r.rays();
-                let m = lane_box(&b.bounds, j)
+                let m = lane_box(leaf, j)
                     .intersect_lanes(o, inv, m, P::hit_t(hit))
                     .0;
                 if m.none() {
@@ -770,8 +772,10 @@ impl Bvh {
                     r.other_leaf_occluded::<T>(&self.prims, kind, first, count, left, t_max);
                 left = left.and_not(blocked);
             } else {
-                for b in &self.wide.blocks[first..first + count.div_ceil(8)] {
-                    let mut bits = fr.block_candidates::<OCT>(b, t_hi);
+                let w = &self.wide;
+                let end = first + count.div_ceil(8);
+                for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
+                    let mut bits = fr.block_candidates::<OCT>(b, leaf, t_hi);
                     while bits != 0 && left.any() {
                         let j = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
@@ -780,8 +784,7 @@ impl Bvh {
                         let m = m & t.lt(t_max);
                         if m.any() {
                             let [o, _, inv] = r.rays();
-                            let blocked =
-                                lane_box(&b.bounds, j).intersect_lanes(o, inv, m, t_max).0;
+                            let blocked = lane_box(leaf, j).intersect_lanes(o, inv, m, t_max).0;
                             left = left.and_not(blocked);
                         }
                     }
