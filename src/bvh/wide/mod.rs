@@ -84,9 +84,9 @@ impl WideNode {
 /// A lane's hit counts only when the ray also passes its binary leaf's box: then a
 /// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
 /// monotone under box containment, so passing the leaf's box implies passing every
-/// ancestor's), even for a ray lying in a box face with a ±0 direction component. A
-/// block of one binary leaf (`one_leaf`) has the slot's own box in every lane, already
-/// passed by a single ray.
+/// ancestor's), even for a ray lying in a box face with a ±0 direction component. In a
+/// block of one binary leaf (`one_leaf`) every lane's leaf box is the slot's, which a
+/// single ray has already passed.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriBlock {

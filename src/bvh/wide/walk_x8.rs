@@ -9,10 +9,10 @@
 //! are visited nearest first, and a popped subtree is skipped when that bound lies
 //! behind every active lane's nearest hit. Nothing is decided per lane above the
 //! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
-//! own slab test meets its box ([`entered_leaves`]). In a leaf, the frustum test
-//! of a triangle block's per-lane binary leaf boxes (`WideBvh::leaf_boxes`) picks the triangles to test (all of
-//! them in a block of one binary leaf, whose box the frustum has passed); each is
-//! tested against the whole packet with the packet kernel
+//! own slab test meets its box ([`entered_leaves`]). In a leaf, the frustum test of a
+//! triangle block's per-lane binary leaf boxes (`WideBvh::leaf_boxes`) picks the
+//! triangles to test (all of them in a block of one binary leaf, whose box the frustum
+//! has passed); each is tested against the whole packet with the packet kernel
 //! (`TriangleKernel::intersect_splat_x8`, the binary packet walk's, or at 16 lanes its
 //! twin `intersect_splat_lanes`), and a lane's hit counts only when the lane also
 //! passes that triangle's binary leaf box (the single-ray wide walk's rule, see
