@@ -1,13 +1,25 @@
 //! Structural checks of a built BVH, run after every build in debug builds.
 
+use glam::Vec3;
+use wide::f32x8;
+
 use super::Bvh;
+use super::wide::{PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, WIDE_STACK};
 use crate::geometry::PrimKind;
+use crate::math::aabb::Aabb;
 
 impl Bvh {
     /// Every BVH primitive referenced by exactly one leaf; children inside their
     /// parent; leaves of one kind with in-range primitives inside their box; the tree
-    /// within the traversal stack; every object index in range of the arrays.
+    /// within the traversal stack; every object index in range of the arrays; and the
+    /// same of the wide tree ([`Bvh::validate_wide`]).
     pub fn validate(&self) -> Result<(), String> {
+        self.validate_binary()?;
+        self.validate_wide()
+    }
+
+    /// The binary tree's part of [`Bvh::validate`].
+    fn validate_binary(&self) -> Result<(), String> {
         let p = &self.prims;
         if p.spheres.len() != p.sphere_obj.len()
             || p.triangles.len() != p.triangle_obj.len()
@@ -72,5 +84,303 @@ impl Bvh {
             }
         }
         Ok(())
+    }
+}
+
+/// Box `j` of a wide node's (or a leaf-box entry's) bounds.
+fn lane_box(bounds: &[f32x8; 6], j: usize) -> Aabb {
+    let c = |k: usize| bounds[k].as_array()[j];
+    Aabb::new(Vec3::new(c(0), c(2), c(4)), Vec3::new(c(1), c(3), c(5)))
+}
+
+/// The same bits (a slot's box copied, not recomputed).
+fn same_box(a: &Aabb, b: &Aabb) -> bool {
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    bits(a.lo) == bits(b.lo) && bits(a.hi) == bits(b.hi)
+}
+
+impl Bvh {
+    /// The wide tree's part of [`Bvh::validate`], what its walks rely on:
+    /// - the wide nodes form a tree from node 0, each reached once, children after
+    ///   their parent, within the walks' stack ([`WIDE_STACK`]);
+    /// - each node's slots are filled from 0 without gaps, an empty slot's box is
+    ///   `Aabb::EMPTY` exactly (it never hits), and a child node's boxes lie inside its
+    ///   slot's box;
+    /// - a triangle leaf slot of n triangles owns the next ⌈n/8⌉ blocks, each reached
+    ///   once, whose lanes are `first`, `first + 1`, ... of `PrimSet::triangles`, bit
+    ///   for bit, with padding lanes past `count`;
+    /// - `leaf_boxes` has one entry per block; a lane's leaf box lies in its slot's box
+    ///   and holds its triangle's box; a padding lane's is empty; in a block of one
+    ///   binary leaf (`one_leaf`) every lane's leaf box is the slot's;
+    /// - a leaf of another kind holds in-range primitives inside its slot's box;
+    /// - every primitive of the tree's kinds is reached exactly once;
+    /// - the size switches (`prefetches`, `stream_steps`, `stream_any_hit_steps`) follow
+    ///   [`WideBvh::walked_bytes`](super::wide::WideBvh::walked_bytes).
+    pub fn validate_wide(&self) -> Result<(), String> {
+        let (w, p) = (&self.wide, &self.prims);
+        if w.blocks.len() != w.leaf_boxes.len() {
+            return Err(format!(
+                "wide tree: {} triangle blocks but {} leaf-box entries",
+                w.blocks.len(),
+                w.leaf_boxes.len()
+            ));
+        }
+        if self.nodes.is_empty() {
+            return if w.nodes.is_empty() && w.blocks.is_empty() {
+                Ok(())
+            } else {
+                Err("wide tree without a binary tree".into())
+            };
+        }
+        if w.nodes.is_empty() {
+            return Err("binary tree without a wide tree".into());
+        }
+        let walked = w.walked_bytes();
+        let switches = [
+            ("prefetches", w.prefetches, walked > PREFETCH_FROM),
+            ("stream_steps", w.stream_steps, walked >= STREAM_FROM),
+            (
+                "stream_any_hit_steps",
+                w.stream_any_hit_steps,
+                walked >= STREAM_ANY_HIT_FROM,
+            ),
+        ];
+        for (name, is, want) in switches {
+            if is != want {
+                return Err(format!(
+                    "wide tree: {name} is {is} for {walked} bytes walked"
+                ));
+            }
+        }
+        let mut seen: Vec<Vec<u8>> = PrimKind::BVH_KINDS
+            .iter()
+            .map(|&k| vec![0; p.len(k)])
+            .collect();
+        let mut node_seen = vec![false; w.nodes.len()];
+        let mut block_seen = vec![false; w.blocks.len()];
+        let mut stack = vec![(0usize, 1usize)];
+        while let Some((i, depth)) = stack.pop() {
+            if std::mem::replace(&mut node_seen[i], true) {
+                return Err(format!("wide node {i} reached twice"));
+            }
+            if 7 * depth + 1 > WIDE_STACK {
+                return Err(format!("wide node {i} at depth {depth} exceeds the stack"));
+            }
+            let node = &w.nodes[i];
+            let used = (0..8)
+                .take_while(|&s| !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY))
+                .count();
+            for s in used..8 {
+                let r = node.get(s);
+                if !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY)
+                    || !r.slot.is_interior()
+                    || r.child != 0
+                {
+                    return Err(format!("wide node {i}: slot {s} after an empty one"));
+                }
+            }
+            if used == 0 {
+                return Err(format!("wide node {i} has no slot"));
+            }
+            for s in 0..used {
+                let r = node.get(s);
+                let b = lane_box(&node.bounds, s);
+                let at = format!("wide node {i} slot {s}");
+                if r.slot.is_interior() {
+                    let c = r.child as usize;
+                    if c <= i || c >= w.nodes.len() {
+                        return Err(format!("{at}: child node {c} out of order"));
+                    }
+                    for j in 0..8 {
+                        let cb = lane_box(&w.nodes[c].bounds, j);
+                        if !same_box(&cb, &Aabb::EMPTY) && !b.contains(&cb) {
+                            return Err(format!("{at}: child {c} slot {j} outside its box"));
+                        }
+                    }
+                    stack.push((c, depth + 1));
+                    continue;
+                }
+                let kind = r.slot.kind();
+                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&x| x == kind) else {
+                    return Err(format!("{at}: leaf of non-BVH kind {kind:?}"));
+                };
+                let count = r.slot.count() as usize;
+                if kind != PrimKind::Triangle {
+                    let first = r.child as usize;
+                    if first + count > p.len(kind) {
+                        return Err(format!("{at}: range {first}+{count} out of bounds"));
+                    }
+                    for (j, x) in seen[k].iter_mut().enumerate().skip(first).take(count) {
+                        if !b.contains(&p.bounds(kind, j)) {
+                            return Err(format!("{at}: primitive {j} outside the box"));
+                        }
+                        *x += 1;
+                    }
+                    continue;
+                }
+                let b0 = r.child as usize;
+                let nb = count.div_ceil(8);
+                if b0 + nb > w.blocks.len() {
+                    return Err(format!("{at}: blocks {b0}+{nb} out of bounds"));
+                }
+                let first = w.blocks[b0].first as usize;
+                for q in 0..nb {
+                    let bi = b0 + q;
+                    if std::mem::replace(&mut block_seen[bi], true) {
+                        return Err(format!("{at}: block {bi} reached twice"));
+                    }
+                    let (blk, boxes) = (&w.blocks[bi], &w.leaf_boxes[bi]);
+                    let (f, n) = (blk.first as usize, blk.count as usize);
+                    if f != first + 8 * q
+                        || n != (count - 8 * q).min(8)
+                        || f + n > p.triangles.len()
+                    {
+                        return Err(format!(
+                            "{at}: block {bi} holds triangles {f}+{n}, not the slot's"
+                        ));
+                    }
+                    for l in 0..8 {
+                        let lb = lane_box(boxes, l);
+                        if l >= n {
+                            if !same_box(&lb, &Aabb::EMPTY) {
+                                return Err(format!("block {bi}: padding lane {l} has a box"));
+                            }
+                            continue;
+                        }
+                        let v = &p.triangles[f + l].v;
+                        let lane = |c: usize, a: usize| blk.tri.v[c][a].as_array()[l].to_bits();
+                        if (0..3).any(|c| (0..3).any(|a| lane(c, a) != v[c][a].to_bits())) {
+                            return Err(format!("block {bi} lane {l}: not triangle {}", f + l));
+                        }
+                        if !lb.contains(&p.bounds(kind, f + l)) || !b.contains(&lb) {
+                            return Err(format!(
+                                "block {bi} lane {l}: leaf box not between its triangle's and its slot's"
+                            ));
+                        }
+                        if blk.one_leaf && !same_box(&lb, &b) {
+                            return Err(format!(
+                                "block {bi} lane {l}: one binary leaf, but not the slot's box"
+                            ));
+                        }
+                        seen[k][f + l] += 1;
+                    }
+                }
+            }
+        }
+        if let Some(i) = node_seen.iter().position(|&x| !x) {
+            return Err(format!("wide node {i} not reached"));
+        }
+        if let Some(b) = block_seen.iter().position(|&x| !x) {
+            return Err(format!("triangle block {b} not reached"));
+        }
+        for (k, s) in seen.iter().enumerate() {
+            if let Some(j) = s.iter().position(|&c| c != 1) {
+                return Err(format!(
+                    "wide tree: primitive {j} of kind {k} reached {} times",
+                    s[j]
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::bench::torus;
+    use crate::bvh::wide::WideBvh;
+    use crate::geometry::PrimSet;
+
+    /// Lane `j` of `v` set to `x`.
+    fn set_lane(v: &mut f32x8, j: usize, x: f32) {
+        let mut a = v.to_array();
+        a[j] = x;
+        *v = f32x8::new(a);
+    }
+
+    type Breaker = Box<dyn Fn(&mut WideBvh)>;
+
+    #[test]
+    fn a_built_tree_passes_and_each_broken_wide_invariant_is_named() {
+        let good = Bvh::build(PrimSet::from_triangles(torus(40, 24)));
+        assert_eq!(good.validate(), Ok(()));
+        let w = &good.wide;
+        let merged = w
+            .blocks
+            .iter()
+            .position(|b| !b.one_leaf)
+            .expect("a merged block");
+        let short = (w.blocks.iter())
+            .position(|b| b.count < 8 && b.count > 1)
+            .expect("a block with padding lanes");
+        let interior = (0..8)
+            .find(|&s| w.nodes[0].slot[s].is_interior() && w.nodes[0].child[s] != 0)
+            .expect("a root slot over a node");
+        let cases: Vec<(&str, Breaker)> = vec![
+            (
+                "leaf-box entries",
+                Box::new(|w| {
+                    w.leaf_boxes.pop();
+                }),
+            ),
+            (
+                "after an empty one",
+                Box::new(|w| {
+                    for (k, v) in w.nodes[0].bounds.iter_mut().enumerate() {
+                        let x = if k % 2 == 0 {
+                            f32::INFINITY
+                        } else {
+                            f32::NEG_INFINITY
+                        };
+                        set_lane(v, 0, x);
+                    }
+                }),
+            ),
+            (
+                "out of order",
+                Box::new(move |w| w.nodes[0].child[interior] = 0),
+            ),
+            (
+                "not triangle",
+                Box::new(|w| {
+                    let x = w.blocks[0].tri.v[0][0].to_array()[0];
+                    set_lane(&mut w.blocks[0].tri.v[0][0], 0, x + 1.0);
+                }),
+            ),
+            (
+                "not the slot's",
+                Box::new(move |w| w.blocks[short].count -= 1),
+            ),
+            (
+                "not between its triangle's and its slot's",
+                Box::new(move |w| {
+                    // lane 0's box shrunk to its high x face
+                    let hi = w.leaf_boxes[merged][1].to_array()[0];
+                    set_lane(&mut w.leaf_boxes[merged][0], 0, hi);
+                }),
+            ),
+            (
+                "padding lane",
+                Box::new(move |w| {
+                    let b = &mut w.leaf_boxes[short];
+                    for v in b.iter_mut() {
+                        let x = v.to_array()[0];
+                        set_lane(v, 7, x);
+                    }
+                }),
+            ),
+            (
+                "one binary leaf",
+                Box::new(move |w| w.blocks[merged].one_leaf = true),
+            ),
+            ("prefetches", Box::new(|w| w.prefetches = !w.prefetches)),
+        ];
+        for (want, break_it) in cases {
+            let mut bvh = good.clone();
+            break_it(&mut bvh.wide);
+            let e = bvh.validate().expect_err(want);
+            assert!(e.contains(want), "expected {want:?}, got {e:?}");
+        }
     }
 }
