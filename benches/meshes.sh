@@ -2,8 +2,9 @@
 # The mesh figures against Embree in interleaved rounds: per round and mesh, the Embree harness
 # (benches/embree, modes 1/8/16 and the stream 1M, closest hit and shadow rays) then octaray
 # bench-trace (modes 1/8/16, the binary 1b/8b and the stream 1s) on the
-# same work, 1 thread; prints every line, then the median Mrays/s of each cell over the rounds
-# and octaray's best mode over Embree's best mode. Usage, from the repository root:
+# same work, 1 thread; prints every line, then the median Mrays/s of each cell over the rounds,
+# octaray's best mode over Embree's best mode, and the median and range over the rounds of
+# each round's best over best. Usage, from the repository root:
 #   benches/meshes.sh [ROUNDS] [/tmp/embree-peer]
 set -euo pipefail
 rounds=${1:-3}
@@ -44,7 +45,12 @@ for (mesh, rays), modes in cells.items():
     (eb, em), (ob, om) = best('embree'), best('octaray')
     row = ' '.join(f'{w}{m}={v:.2f}' for (w, m), v in sorted(med.items()))
     hits = {w: modes[(w, m)][0][1:] for w, m in [('embree', em), ('octaray', om)]}
+    # each round's own best over best (both sides' modes run back to back in a round)
+    rounds = min(len(v) for v in modes.values())
+    per = sorted(max(v[r][0] for k, v in modes.items() if k[0] == 'octaray')
+                 / max(v[r][0] for k, v in modes.items() if k[0] == 'embree') for r in range(rounds))
     print(f'{mesh} {rays}: {row} | best octaray mode={om} {ob:.2f} / embree mode={em} {eb:.2f} = {ob / eb:.2f}x'
+          f' | per round {statistics.median(per):.2f}x ({per[0]:.2f}-{per[-1]:.2f})'
           f' | hits, mean_t: embree {hits["embree"]}, octaray {hits["octaray"]}')
 PY
 rm -f "$log"
