@@ -49,7 +49,14 @@ impl Slot {
     #[inline]
     pub fn kind(self) -> PrimKind {
         debug_assert!(!self.is_interior());
-        PrimKind::from_bits(self.0 >> KIND_SHIFT).expect("a leaf slot names a primitive kind")
+        self.try_kind().expect("a leaf slot names a primitive kind")
+    }
+
+    /// The kind its kind bits name, `None` when they name none (a slot not made by
+    /// [`Slot::leaf`]: `Bvh::validate` reports it).
+    #[inline]
+    pub fn try_kind(self) -> Option<PrimKind> {
+        PrimKind::from_bits(self.0 >> KIND_SHIFT)
     }
 
     /// Whether this is a leaf of `kind` (no decoding).

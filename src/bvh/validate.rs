@@ -60,7 +60,9 @@ impl Bvh {
                     if !b.contains(&p.bounds(kind, j)) {
                         return Err(format!("leaf {i}: primitive {j} outside the box"));
                     }
-                    *s += 1;
+                    if std::mem::replace(s, 1) != 0 {
+                        return Err(format!("primitive {j} of kind {k} referenced twice"));
+                    }
                 }
             } else {
                 let l = n.first as usize;
@@ -76,11 +78,8 @@ impl Bvh {
             }
         }
         for (k, s) in seen.iter().enumerate() {
-            if let Some(j) = s.iter().position(|&c| c != 1) {
-                return Err(format!(
-                    "primitive {j} of kind {k} referenced {} times",
-                    s[j]
-                ));
+            if let Some(j) = s.iter().position(|&c| c == 0) {
+                return Err(format!("primitive {j} of kind {k} referenced by no leaf"));
             }
         }
         Ok(())
@@ -103,12 +102,13 @@ impl Bvh {
     /// The wide tree's part of [`Bvh::validate`], what its walks rely on:
     /// - the wide nodes form a tree from node 0, each reached once, children after
     ///   their parent, within the walks' stack ([`WIDE_STACK`]);
-    /// - each node's slots are filled from 0 without gaps, an empty slot's box is
-    ///   `Aabb::EMPTY` exactly (it never hits), and a child node's boxes lie inside its
-    ///   slot's box;
-    /// - a triangle leaf slot of n triangles owns the next ⌈n/8⌉ blocks, each reached
-    ///   once, whose lanes are `first`, `first + 1`, ... of `PrimSet::triangles`, bit
-    ///   for bit, with padding lanes past `count`;
+    /// - each node has a slot, its slots are filled from 0 without gaps, and an empty
+    ///   slot is `WideNode::empty`'s (its box `Aabb::EMPTY` exactly, which never hits;
+    ///   interior, child 0); a child node's boxes lie inside its slot's box;
+    /// - a leaf slot names a kind of the tree; a triangle leaf of n triangles owns the
+    ///   ⌈n/8⌉ blocks from its child index, each reached once, whose lanes are
+    ///   `first`, `first + 1`, ... of `PrimSet::triangles` (in range), bit for bit, with
+    ///   padding lanes past `count`;
     /// - `leaf_boxes` has one entry per block; a lane's leaf box lies in its slot's box
     ///   and holds its triangle's box; a padding lane's is empty; in a block of one
     ///   binary leaf (`one_leaf`) every lane's leaf box is the slot's;
@@ -172,11 +172,11 @@ impl Bvh {
                 .count();
             for s in used..8 {
                 let r = node.get(s);
-                if !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY)
-                    || !r.slot.is_interior()
-                    || r.child != 0
-                {
-                    return Err(format!("wide node {i}: slot {s} after an empty one"));
+                if !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY) {
+                    return Err(format!("wide node {i}: slot {s} filled after an empty one"));
+                }
+                if !r.slot.is_interior() || r.child != 0 {
+                    return Err(format!("wide node {i}: empty slot {s} names a child"));
                 }
             }
             if used == 0 {
@@ -200,10 +200,11 @@ impl Bvh {
                     stack.push((c, depth + 1));
                     continue;
                 }
-                let kind = r.slot.kind();
-                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&x| x == kind) else {
-                    return Err(format!("{at}: leaf of non-BVH kind {kind:?}"));
+                let kind = r.slot.try_kind();
+                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&x| Some(x) == kind) else {
+                    return Err(format!("{at}: leaf of no kind of the tree ({kind:?})"));
                 };
+                let kind = PrimKind::BVH_KINDS[k];
                 let count = r.slot.count() as usize;
                 if kind != PrimKind::Triangle {
                     let first = r.child as usize;
@@ -214,7 +215,11 @@ impl Bvh {
                         if !b.contains(&p.bounds(kind, j)) {
                             return Err(format!("{at}: primitive {j} outside the box"));
                         }
-                        *x += 1;
+                        if std::mem::replace(x, 1) != 0 {
+                            return Err(format!(
+                                "wide tree: primitive {j} of kind {k} reached twice"
+                            ));
+                        }
                     }
                     continue;
                 }
@@ -262,7 +267,9 @@ impl Bvh {
                                 "block {bi} lane {l}: one binary leaf, but not the slot's box"
                             ));
                         }
-                        seen[k][f + l] += 1;
+                        if std::mem::replace(&mut seen[k][f + l], 1) != 0 {
+                            return Err(format!("wide tree: triangle {} reached twice", f + l));
+                        }
                     }
                 }
             }
@@ -274,11 +281,8 @@ impl Bvh {
             return Err(format!("triangle block {b} not reached"));
         }
         for (k, s) in seen.iter().enumerate() {
-            if let Some(j) = s.iter().position(|&c| c != 1) {
-                return Err(format!(
-                    "wide tree: primitive {j} of kind {k} reached {} times",
-                    s[j]
-                ));
+            if let Some(j) = s.iter().position(|&c| c == 0) {
+                return Err(format!("wide tree: primitive {j} of kind {k} not reached"));
             }
         }
         Ok(())
@@ -289,7 +293,8 @@ impl Bvh {
 mod tests {
     use super::*;
     use crate::bvh::bench::torus;
-    use crate::bvh::wide::WideBvh;
+    use crate::bvh::slot::Slot;
+    use crate::bvh::wide::{WideBvh, WideNode};
     use crate::geometry::PrimSet;
 
     /// Lane `j` of `v` set to `x`.
@@ -314,9 +319,29 @@ mod tests {
         let short = (w.blocks.iter())
             .position(|b| b.count < 8 && b.count > 1)
             .expect("a block with padding lanes");
-        let interior = (0..8)
-            .find(|&s| w.nodes[0].slot[s].is_interior() && w.nodes[0].child[s] != 0)
-            .expect("a root slot over a node");
+        // a node with two interior slots, one with an empty slot, one with a leaf
+        let slots = |f: &dyn Fn(&WideNode, usize) -> bool| {
+            (0..w.nodes.len())
+                .flat_map(|i| (0..8).map(move |s| (i, s)))
+                .filter(|&(i, s)| f(&w.nodes[i], s))
+                .collect::<Vec<_>>()
+        };
+        let interior = slots(&|n, s| n.slot[s].is_interior() && n.child[s] != 0);
+        let (i2, [a, b]) = (0..w.nodes.len())
+            .find_map(|i| {
+                let s: Vec<usize> = (interior.iter())
+                    .filter(|x| x.0 == i)
+                    .map(|x| x.1)
+                    .collect();
+                (s.len() >= 2).then(|| (i, [s[0], s[1]]))
+            })
+            .expect("a node over two nodes");
+        let (ie, se) = *slots(&|n, s| same_box(&lane_box(&n.bounds, s), &Aabb::EMPTY))
+            .first()
+            .expect("an empty slot");
+        let (il, sl) = *slots(&|n, s| n.slot[s].holds(PrimKind::Triangle))
+            .first()
+            .expect("a triangle leaf slot");
         let cases: Vec<(&str, Breaker)> = vec![
             (
                 "leaf-box entries",
@@ -324,10 +349,16 @@ mod tests {
                     w.leaf_boxes.pop();
                 }),
             ),
+            ("prefetches", Box::new(|w| w.prefetches = !w.prefetches)),
             (
-                "after an empty one",
+                "stream_steps",
+                Box::new(|w| w.stream_steps = !w.stream_steps),
+            ),
+            (
+                "slot 1 filled after an empty one",
                 Box::new(|w| {
-                    for (k, v) in w.nodes[0].bounds.iter_mut().enumerate() {
+                    let n = &mut w.nodes[0];
+                    for (k, v) in n.bounds.iter_mut().enumerate() {
                         let x = if k % 2 == 0 {
                             f32::INFINITY
                         } else {
@@ -335,11 +366,48 @@ mod tests {
                         };
                         set_lane(v, 0, x);
                     }
+                    (n.slot[0], n.child[0]) = (Slot::INTERIOR, 0);
                 }),
             ),
             (
+                "names a child",
+                Box::new(move |w| w.nodes[ie].child[se] = 1),
+            ),
+            (
                 "out of order",
-                Box::new(move |w| w.nodes[0].child[interior] = 0),
+                Box::new(move |w| w.nodes[i2].child[a] = i2 as u32),
+            ),
+            (
+                "reached twice",
+                Box::new(move |w| {
+                    // slot b a copy of slot a: its box and its child
+                    let n = &mut w.nodes[i2];
+                    for v in n.bounds.iter_mut() {
+                        let x = v.to_array()[a];
+                        set_lane(v, b, x);
+                    }
+                    n.child[b] = n.child[a];
+                }),
+            ),
+            ("not reached", Box::new(|w| w.nodes.push(WideNode::empty()))),
+            (
+                "outside its box",
+                Box::new(move |w| {
+                    // slot a's box shrunk to its high x face
+                    let hi = w.nodes[i2].bounds[1].to_array()[a];
+                    set_lane(&mut w.nodes[i2].bounds[0], a, hi);
+                }),
+            ),
+            (
+                "no kind of the tree",
+                Box::new(move |w| {
+                    let n = w.nodes[il].slot[sl].count();
+                    w.nodes[il].slot[sl] = Slot::leaf(PrimKind::Floor, n);
+                }),
+            ),
+            (
+                "out of bounds",
+                Box::new(move |w| w.nodes[il].child[sl] = w.blocks.len() as u32),
             ),
             (
                 "not triangle",
@@ -349,7 +417,7 @@ mod tests {
                 }),
             ),
             (
-                "not the slot's",
+                "holds triangles",
                 Box::new(move |w| w.blocks[short].count -= 1),
             ),
             (
@@ -374,7 +442,6 @@ mod tests {
                 "one binary leaf",
                 Box::new(move |w| w.blocks[merged].one_leaf = true),
             ),
-            ("prefetches", Box::new(|w| w.prefetches = !w.prefetches)),
         ];
         for (want, break_it) in cases {
             let mut bvh = good.clone();
