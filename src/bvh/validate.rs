@@ -48,22 +48,12 @@ impl Bvh {
             let n = &self.nodes[i];
             let b = n.bounds();
             if n.is_leaf() {
-                let kind = n.kind();
-                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&b| b == kind) else {
+                let kind = n.slot.try_kind();
+                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&b| Some(b) == kind) else {
                     return Err(format!("leaf {i} has non-BVH kind {kind:?}"));
                 };
                 let (first, count) = (n.first as usize, n.count() as usize);
-                if first + count > p.len(kind) {
-                    return Err(format!("leaf {i} range {first}+{count} out of bounds"));
-                }
-                for (j, s) in seen[k].iter_mut().enumerate().skip(first).take(count) {
-                    if !b.contains(&p.bounds(kind, j)) {
-                        return Err(format!("leaf {i}: primitive {j} outside the box"));
-                    }
-                    if std::mem::replace(s, 1) != 0 {
-                        return Err(format!("primitive {j} of kind {k} referenced twice"));
-                    }
-                }
+                leaf_prims(p, k, first, count, &b, &mut seen[k], &format!("leaf {i}"))?;
             } else {
                 let l = n.first as usize;
                 if l + 1 >= self.nodes.len() || l <= i {
@@ -84,6 +74,32 @@ impl Bvh {
         }
         Ok(())
     }
+}
+
+/// A leaf of `count` primitives of kind `BVH_KINDS[k]` from `first`: in range, inside
+/// the leaf's box `b`, each marked in `seen` (the kind's marks) and not marked before.
+fn leaf_prims(
+    p: &crate::geometry::PrimSet,
+    k: usize,
+    first: usize,
+    count: usize,
+    b: &Aabb,
+    seen: &mut [u8],
+    at: &str,
+) -> Result<(), String> {
+    let kind = PrimKind::BVH_KINDS[k];
+    if first + count > p.len(kind) {
+        return Err(format!("{at}: range {first}+{count} out of bounds"));
+    }
+    for (j, x) in seen.iter_mut().enumerate().skip(first).take(count) {
+        if !b.contains(&p.bounds(kind, j)) {
+            return Err(format!("{at}: primitive {j} outside the box"));
+        }
+        if std::mem::replace(x, 1) != 0 {
+            return Err(format!("{at}: primitive {j} of kind {k} reached twice"));
+        }
+    }
+    Ok(())
 }
 
 /// Box `j` of a wide node's (or a leaf-box entry's) bounds.
@@ -207,20 +223,7 @@ impl Bvh {
                 let kind = PrimKind::BVH_KINDS[k];
                 let count = r.slot.count() as usize;
                 if kind != PrimKind::Triangle {
-                    let first = r.child as usize;
-                    if first + count > p.len(kind) {
-                        return Err(format!("{at}: range {first}+{count} out of bounds"));
-                    }
-                    for (j, x) in seen[k].iter_mut().enumerate().skip(first).take(count) {
-                        if !b.contains(&p.bounds(kind, j)) {
-                            return Err(format!("{at}: primitive {j} outside the box"));
-                        }
-                        if std::mem::replace(x, 1) != 0 {
-                            return Err(format!(
-                                "wide tree: primitive {j} of kind {k} reached twice"
-                            ));
-                        }
-                    }
+                    leaf_prims(p, k, r.child as usize, count, &b, &mut seen[k], &at)?;
                     continue;
                 }
                 let b0 = r.child as usize;
