@@ -4,8 +4,10 @@ use glam::Vec3;
 use wide::f32x8;
 
 use super::Bvh;
-use super::wide::{PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, WIDE_STACK};
-use crate::geometry::PrimKind;
+use super::slot::Slot;
+use super::wide::walk_x8::lane_box;
+use super::wide::{PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, TriBlock, WIDE_STACK};
+use crate::geometry::{PrimKind, PrimSet};
 use crate::math::aabb::Aabb;
 
 impl Bvh {
@@ -36,10 +38,7 @@ impl Bvh {
                 Err(format!("{total} primitives but no nodes"))
             };
         }
-        let mut seen: Vec<Vec<u8>> = PrimKind::BVH_KINDS
-            .iter()
-            .map(|&k| vec![0; p.len(k)])
-            .collect();
+        let mut seen = marks(p);
         let mut stack = vec![(0usize, 1usize)];
         while let Some((i, depth)) = stack.pop() {
             if depth >= super::STACK_SIZE {
@@ -48,9 +47,8 @@ impl Bvh {
             let n = &self.nodes[i];
             let b = n.bounds();
             if n.is_leaf() {
-                let kind = n.slot.try_kind();
-                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&b| Some(b) == kind) else {
-                    return Err(format!("leaf {i} has non-BVH kind {kind:?}"));
+                let Some(k) = bvh_kind(n.slot) else {
+                    return Err(format!("leaf {i} has non-BVH kind {:?}", n.slot.try_kind()));
                 };
                 let (first, count) = (n.first as usize, n.count() as usize);
                 leaf_prims(p, k, first, count, &b, &mut seen[k], &format!("leaf {i}"))?;
@@ -67,19 +65,36 @@ impl Bvh {
                 }
             }
         }
-        for (k, s) in seen.iter().enumerate() {
-            if let Some(j) = s.iter().position(|&c| c == 0) {
-                return Err(format!("primitive {j} of kind {k} referenced by no leaf"));
-            }
+        match unmarked(&seen) {
+            Some((k, j)) => Err(format!("primitive {j} of kind {k} referenced by no leaf")),
+            None => Ok(()),
         }
-        Ok(())
     }
+}
+
+/// One mark per primitive of each BVH kind, none set.
+fn marks(p: &PrimSet) -> Vec<Vec<u8>> {
+    (PrimKind::BVH_KINDS.iter())
+        .map(|&k| vec![0; p.len(k)])
+        .collect()
+}
+
+/// The first primitive (index in `BVH_KINDS`, index) left unmarked.
+fn unmarked(seen: &[Vec<u8>]) -> Option<(usize, usize)> {
+    (seen.iter().enumerate()).find_map(|(k, s)| s.iter().position(|&c| c == 0).map(|j| (k, j)))
+}
+
+/// The index in `BVH_KINDS` of a leaf slot's kind; `None` for bits that name no kind
+/// of the trees.
+fn bvh_kind(slot: Slot) -> Option<usize> {
+    let kind = slot.try_kind()?;
+    PrimKind::BVH_KINDS.iter().position(|&b| b == kind)
 }
 
 /// A leaf of `count` primitives of kind `BVH_KINDS[k]` from `first`: in range, inside
 /// the leaf's box `b`, each marked in `seen` (the kind's marks) and not marked before.
 fn leaf_prims(
-    p: &crate::geometry::PrimSet,
+    p: &PrimSet,
     k: usize,
     first: usize,
     count: usize,
@@ -103,9 +118,8 @@ fn leaf_prims(
 }
 
 /// Box `j` of a wide node's (or a leaf-box entry's) bounds.
-fn lane_box(bounds: &[f32x8; 6], j: usize) -> Aabb {
-    let c = |k: usize| bounds[k].as_array()[j];
-    Aabb::new(Vec3::new(c(0), c(2), c(4)), Vec3::new(c(1), c(3), c(5)))
+fn slot_box(bounds: &[f32x8; 6], j: usize) -> Aabb {
+    lane_box(bounds, j).bounds()
 }
 
 /// The same bits (a slot's box copied, not recomputed).
@@ -168,10 +182,7 @@ impl Bvh {
                 ));
             }
         }
-        let mut seen: Vec<Vec<u8>> = PrimKind::BVH_KINDS
-            .iter()
-            .map(|&k| vec![0; p.len(k)])
-            .collect();
+        let mut seen = marks(p);
         let mut node_seen = vec![false; w.nodes.len()];
         let mut block_seen = vec![false; w.blocks.len()];
         let mut stack = vec![(0usize, 1usize)];
@@ -183,12 +194,12 @@ impl Bvh {
                 return Err(format!("wide node {i} at depth {depth} exceeds the stack"));
             }
             let node = &w.nodes[i];
-            let used = (0..8)
-                .take_while(|&s| !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY))
-                .count();
-            for s in used..8 {
+            let empty: [bool; 8] =
+                std::array::from_fn(|s| same_box(&slot_box(&node.bounds, s), &Aabb::EMPTY));
+            let used = empty.iter().take_while(|&&e| !e).count();
+            for (s, &e) in empty.iter().enumerate().skip(used) {
                 let r = node.get(s);
-                if !same_box(&lane_box(&node.bounds, s), &Aabb::EMPTY) {
+                if !e {
                     return Err(format!("wide node {i}: slot {s} filled after an empty one"));
                 }
                 if !r.slot.is_interior() || r.child != 0 {
@@ -200,7 +211,7 @@ impl Bvh {
             }
             for s in 0..used {
                 let r = node.get(s);
-                let b = lane_box(&node.bounds, s);
+                let b = slot_box(&node.bounds, s);
                 let at = format!("wide node {i} slot {s}");
                 if r.slot.is_interior() {
                     let c = r.child as usize;
@@ -208,7 +219,7 @@ impl Bvh {
                         return Err(format!("{at}: child node {c} out of order"));
                     }
                     for j in 0..8 {
-                        let cb = lane_box(&w.nodes[c].bounds, j);
+                        let cb = slot_box(&w.nodes[c].bounds, j);
                         if !same_box(&cb, &Aabb::EMPTY) && !b.contains(&cb) {
                             return Err(format!("{at}: child {c} slot {j} outside its box"));
                         }
@@ -216,13 +227,12 @@ impl Bvh {
                     stack.push((c, depth + 1));
                     continue;
                 }
-                let kind = r.slot.try_kind();
-                let Some(k) = PrimKind::BVH_KINDS.iter().position(|&x| Some(x) == kind) else {
+                let Some(k) = bvh_kind(r.slot) else {
+                    let kind = r.slot.try_kind();
                     return Err(format!("{at}: leaf of no kind of the tree ({kind:?})"));
                 };
-                let kind = PrimKind::BVH_KINDS[k];
                 let count = r.slot.count() as usize;
-                if kind != PrimKind::Triangle {
+                if PrimKind::BVH_KINDS[k] != PrimKind::Triangle {
                     leaf_prims(p, k, r.child as usize, count, &b, &mut seen[k], &at)?;
                     continue;
                 }
@@ -237,43 +247,10 @@ impl Bvh {
                     if std::mem::replace(&mut block_seen[bi], true) {
                         return Err(format!("{at}: block {bi} reached twice"));
                     }
+                    let want = (first + 8 * q, (count - 8 * q).min(8));
                     let (blk, boxes) = (&w.blocks[bi], &w.leaf_boxes[bi]);
-                    let (f, n) = (blk.first as usize, blk.count as usize);
-                    if f != first + 8 * q
-                        || n != (count - 8 * q).min(8)
-                        || f + n > p.triangles.len()
-                    {
-                        return Err(format!(
-                            "{at}: block {bi} holds triangles {f}+{n}, not the slot's"
-                        ));
-                    }
-                    for l in 0..8 {
-                        let lb = lane_box(boxes, l);
-                        if l >= n {
-                            if !same_box(&lb, &Aabb::EMPTY) {
-                                return Err(format!("block {bi}: padding lane {l} has a box"));
-                            }
-                            continue;
-                        }
-                        let v = &p.triangles[f + l].v;
-                        let lane = |c: usize, a: usize| blk.tri.v[c][a].as_array()[l].to_bits();
-                        if (0..3).any(|c| (0..3).any(|a| lane(c, a) != v[c][a].to_bits())) {
-                            return Err(format!("block {bi} lane {l}: not triangle {}", f + l));
-                        }
-                        if !lb.contains(&p.bounds(kind, f + l)) || !b.contains(&lb) {
-                            return Err(format!(
-                                "block {bi} lane {l}: leaf box not between its triangle's and its slot's"
-                            ));
-                        }
-                        if blk.one_leaf && !same_box(&lb, &b) {
-                            return Err(format!(
-                                "block {bi} lane {l}: one binary leaf, but not the slot's box"
-                            ));
-                        }
-                        if std::mem::replace(&mut seen[k][f + l], 1) != 0 {
-                            return Err(format!("wide tree: triangle {} reached twice", f + l));
-                        }
-                    }
+                    triangle_block(p, blk, boxes, want, &b, &mut seen[k])
+                        .map_err(|e| format!("{at}: block {bi}{e}"))?;
                 }
             }
         }
@@ -283,13 +260,58 @@ impl Bvh {
         if let Some(b) = block_seen.iter().position(|&x| !x) {
             return Err(format!("triangle block {b} not reached"));
         }
-        for (k, s) in seen.iter().enumerate() {
-            if let Some(j) = s.iter().position(|&c| c == 0) {
-                return Err(format!("wide tree: primitive {j} of kind {k} not reached"));
-            }
+        match unmarked(&seen) {
+            Some((k, j)) => Err(format!("wide tree: primitive {j} of kind {k} not reached")),
+            None => Ok(()),
         }
-        Ok(())
     }
+}
+
+/// A triangle block of a leaf slot whose box is `b`: it holds triangles `want`
+/// (first, count) of `p`, in range, bit for bit, its padding lanes past them; each
+/// lane's leaf box (`boxes`) lies between its triangle's box and `b`, is `b` itself in
+/// a block of one binary leaf, and is empty in a padding lane; each triangle marked in
+/// `seen` for the first time. The error says what, after the block's name.
+fn triangle_block(
+    p: &PrimSet,
+    blk: &TriBlock,
+    boxes: &[f32x8; 6],
+    want: (usize, usize),
+    b: &Aabb,
+    seen: &mut [u8],
+) -> Result<(), String> {
+    let (f, n) = (blk.first as usize, blk.count as usize);
+    if (f, n) != want || f + n > p.triangles.len() {
+        return Err(format!(" holds triangles {f}+{n}, not the slot's"));
+    }
+    for l in 0..8 {
+        let lb = slot_box(boxes, l);
+        if l >= n {
+            if !same_box(&lb, &Aabb::EMPTY) {
+                return Err(format!(": padding lane {l} has a box"));
+            }
+            continue;
+        }
+        let v = &p.triangles[f + l].v;
+        let lane = |c: usize, a: usize| blk.tri.v[c][a].as_array()[l].to_bits();
+        if (0..3).any(|c| (0..3).any(|a| lane(c, a) != v[c][a].to_bits())) {
+            return Err(format!(" lane {l}: not triangle {}", f + l));
+        }
+        if !lb.contains(&p.bounds(PrimKind::Triangle, f + l)) || !b.contains(&lb) {
+            return Err(format!(
+                " lane {l}: leaf box not between its triangle's and its slot's"
+            ));
+        }
+        if blk.one_leaf && !same_box(&lb, b) {
+            return Err(format!(
+                " lane {l}: one binary leaf, but not the slot's box"
+            ));
+        }
+        if std::mem::replace(&mut seen[f + l], 1) != 0 {
+            return Err(format!(": triangle {} reached twice", f + l));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -339,7 +361,7 @@ mod tests {
                 (s.len() >= 2).then(|| (i, [s[0], s[1]]))
             })
             .expect("a node over two nodes");
-        let (ie, se) = *slots(&|n, s| same_box(&lane_box(&n.bounds, s), &Aabb::EMPTY))
+        let (ie, se) = *slots(&|n, s| same_box(&slot_box(&n.bounds, s), &Aabb::EMPTY))
             .first()
             .expect("an empty slot");
         let (il, sl) = *slots(&|n, s| n.slot[s].holds(PrimKind::Triangle))

@@ -275,7 +275,7 @@ pub(crate) fn shared_octant(r: &RayPacket8, act: Mask8) -> Option<u32> {
 /// the binary leaf box of a block's triangle `j`) as a binary node: its packet slab
 /// test is the one the binary packet walk runs on that box, bit for bit.
 #[inline(always)]
-fn lane_box(bounds: &[f32x8; 6], j: usize) -> BvhNode {
+pub(crate) fn lane_box(bounds: &[f32x8; 6], j: usize) -> BvhNode {
     let c = |k: usize| bounds[k].as_array()[j];
     BvhNode {
         lo: [c(0), c(2), c(4)],
