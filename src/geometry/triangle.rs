@@ -491,8 +491,8 @@ impl Triangle8 {
     }
 
     /// [`Triangle8::intersect_1x8`] for a ray whose largest direction component is
-    /// axis `KZ` (`r.axes[2] == KZ`): the permutation is then fixed at compile time,
-    /// where a run-time index sends the nine vertex vectors through the stack.
+    /// axis `KZ` (`r.axes[2] == KZ`): the permutation fixed at compile time, one copy of
+    /// the kernel per axis ([`Triangle8::intersect_1x8_axes`] reads it at run time).
     #[inline(always)]
     pub fn intersect_1x8_kz<const KZ: usize>(
         &self,
@@ -512,6 +512,32 @@ impl Triangle8 {
             ]
         });
         // shear so the ray runs along +z
+        let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
+        sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
+    }
+
+    /// [`Triangle8::intersect_1x8_kz`] with the permutation read from `r.axes` at run
+    /// time: each vertex vector loaded from the block at its axis's offset (by
+    /// reference, so no copy of the nine goes through the stack), the same operations
+    /// on the same operands.
+    #[inline(always)]
+    pub fn intersect_1x8_axes(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        let [kx, ky, kz] = r.axes;
+        let v = &self.v;
+        let moved = |i: usize| {
+            let q = &v[i];
+            [
+                q[kx] - r.origin[0],
+                q[ky] - r.origin[1],
+                q[kz] - r.origin[2],
+            ]
+        };
+        let p = [moved(0), moved(1), moved(2)];
         let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
         sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
     }
@@ -587,8 +613,9 @@ pub trait TriangleKernel: Copy + Send + Sync + 'static {
         t_max: L,
     ) -> (L::Mask, L, L, L);
 
-    /// One ray (whose largest direction component is axis `KZ`) against the eight
-    /// triangles of a block: lane i is triangle i.
+    /// One ray (whose largest direction component is axis `KZ`, or any `KZ` > 2: the
+    /// ray's own, read at run time) against the eight triangles of a block: lane i is
+    /// triangle i.
     fn intersect_1x8<const KZ: usize>(
         b: &Triangle8,
         r: &Self::Ray1x8,
@@ -701,7 +728,11 @@ impl TriangleKernel for Watertight {
         active: Mask8,
         t_max: f32,
     ) -> Hits8 {
-        b.intersect_1x8_kz::<KZ>(r, active, t_max)
+        if KZ > 2 {
+            b.intersect_1x8_axes(r, active, t_max)
+        } else {
+            b.intersect_1x8_kz::<KZ>(r, active, t_max)
+        }
     }
 }
 
@@ -834,6 +865,62 @@ mod tests {
         }
         assert!(hits > 1000, "too few hits to compare: {hits}");
         assert!(mixed > 10, "too few packets of mixed permutations: {mixed}");
+    }
+
+    /// The 1×8 kernel with the permutation read at run time (the stepped walks') gives
+    /// every lane the bits the kernel of the permutation fixed at compile time gives it:
+    /// rays along each axis in turn and along diagonals (ties of |d|), near and far
+    /// clusters, hits and misses, lanes left out of `active`.
+    #[test]
+    fn the_run_time_permutation_is_the_compile_time_ones() {
+        let mut rng = Xorshift(0x51_7cc1_b727_220a);
+        let mut rnd = move || rng.f32() * 2.0 - 1.0;
+        let (mut hits, mut by_axis) = (0, [0; 3]);
+        for round in 0..600 {
+            let scale = [1.0f32, 1e3, 3e5][round % 3];
+            let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
+            let tris: [Triangle32; 8] = std::array::from_fn(|_| Triangle32 {
+                v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
+            });
+            let block = Triangle8::new(&tris);
+            let mut eye = centre;
+            eye[round % 3] += if round % 2 == 0 { 0.2 } else { -0.2 } * scale;
+            // at one triangle's centroid (a hit in its lane, and in others it crosses)
+            let v = tris[round % 8].v;
+            let mut dir = ((v[0] + v[1] + v[2]) / 3.0 - eye).normalize();
+            if round % 7 == 0 {
+                // a tie of two or three components
+                dir = Vec3::new(1.0, -1.0, if round % 2 == 0 { 1.0 } else { 0.5 }).normalize();
+            }
+            let r = Ray1::new(eye, dir);
+            let tr = TriRay8::new(&r);
+            by_axis[r.kz] += 1;
+            let active = Mask8::from_bits(if round % 5 == 0 { 0b1101_0110 } else { 0xff });
+            let t_max = if round % 3 == 0 {
+                f32::INFINITY
+            } else {
+                0.2 * scale
+            };
+            let want = match r.kz {
+                0 => block.intersect_1x8_kz::<0>(&tr, active, t_max),
+                1 => block.intersect_1x8_kz::<1>(&tr, active, t_max),
+                _ => block.intersect_1x8_kz::<2>(&tr, active, t_max),
+            };
+            let got = block.intersect_1x8_axes(&tr, active, t_max);
+            assert_eq!(got.0.bits(), want.0.bits(), "round {round}: the lanes hit");
+            for l in (0..8).filter(|&l| want.0.lane(l)) {
+                let bits = |h: &(Mask8, f32x8, f32x8, f32x8)| {
+                    [h.1, h.2, h.3].map(|x| x.as_array()[l].to_bits())
+                };
+                assert_eq!(bits(&got), bits(&want), "round {round} lane {l}");
+                hits += 1;
+            }
+        }
+        assert!(hits > 500, "too few hits to compare: {hits}");
+        assert!(
+            by_axis.iter().all(|&n| n > 50),
+            "every permutation: {by_axis:?}"
+        );
     }
 
     #[test]

@@ -432,18 +432,16 @@ impl Ray1 {
         let inv_dir = Vec3::new(safe_recip(dir.x), safe_recip(dir.y), safe_recip(dir.z));
         let a = dir.abs();
         // same choice as the reference: ties go to the later axis
-        let kz = if a.x > a.y && a.x > a.z {
-            0
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
+        // (x if it beats both, else y if it beats z, else z; as arithmetic on the
+        // comparisons, not branches: incoherent rays make them a coin toss)
+        let x_wins = (a.x > a.y) & (a.x > a.z);
+        let kz = usize::from(!x_wins) * (2 - usize::from(a.y > a.z));
         let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
         // 1/d[kz] once: inv_dir's own when |d[kz]| ≥ MIN_DIR (every direction but a zero
         // one, which no caller builds); multiplies, not divisions
-        let inv_z = inv_dir[kz];
-        let shear = Vec3::new(-dir[kx] * inv_z, -dir[ky] * inv_z, inv_z);
+        let (d, inv) = (dir.to_array(), inv_dir.to_array());
+        let inv_z = inv[kz];
+        let shear = Vec3::new(-d[kx] * inv_z, -d[ky] * inv_z, inv_z);
         Ray1 {
             origin,
             dir,
@@ -522,6 +520,45 @@ mod tests {
         assert_eq!(s.to_array()[0], 1.0);
         assert_eq!(s.to_array()[1], 2.0);
         assert!(Mask8::NONE.none() && Mask8::ALL.count() == 8);
+    }
+
+    /// The ray's triangle permutation (the axis of its largest |d|) is the reference's
+    /// choice, `x` only when it beats both, else `y` when it beats `z`, else `z`:
+    /// ties go to the later axis, and a NaN comparison is lost, as there.
+    #[test]
+    fn the_largest_axis_is_the_references_choice() {
+        let reference = |d: Vec3| {
+            let a = d.abs();
+            if a.x > a.y && a.x > a.z {
+                0
+            } else if a.y > a.z {
+                1
+            } else {
+                2
+            }
+        };
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.0,
+            f32::NAN,
+            f32::INFINITY,
+        ];
+        let mut n = 0;
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let d = Vec3::new(x, y, z);
+                    assert_eq!(Ray1::new(Vec3::ZERO, d).kz, reference(d), "d = {d:?}");
+                    n += 1;
+                }
+            }
+        }
+        assert_eq!(n, 729);
     }
 
     #[test]

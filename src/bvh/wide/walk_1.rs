@@ -73,7 +73,11 @@ fn in_turn(mut live: u32, mut step: impl FnMut(usize) -> bool) {
 }
 
 /// [`Bvh::step_1`]'s and [`Bvh::occluded_step_1`]'s `KZ` for walks whose ray's
-/// permutation is read at each leaf (walks of different rays stepped in turn).
+/// permutation is read at run time (walks of different rays stepped in turn): the
+/// triangle kernel loads each vertex vector at its axis's offset
+/// ([`Triangle8::intersect_1x8_axes`](crate::geometry::triangle::Triangle8::intersect_1x8_axes)),
+/// where a jump at each leaf to a copy of the leaf per permutation mispredicted about
+/// once a ray (figures in `benches/README.md`).
 const ANY_KZ: usize = 3;
 
 /// One ray's walk in progress (what `walk_1` keeps in locals), for walks stepped in
@@ -413,8 +417,8 @@ impl Bvh {
 
     /// One step of a ray's closest-hit walk: the node or leaf at `cur`, then the next
     /// subtree still in front of the nearest hit; false when none is left. `KZ`: the
-    /// ray's triangle permutation (0–2, fixed per ray), or [`ANY_KZ`] to pick it at
-    /// each leaf (walks of different rays stepped in turn).
+    /// ray's triangle permutation (0–2, fixed per ray), or [`ANY_KZ`] to read it at
+    /// run time (walks of different rays stepped in turn).
     #[inline(always)]
     fn step_1<T: TriangleKernel, const KZ: usize>(
         &self,
@@ -442,13 +446,6 @@ impl Bvh {
                 };
                 return true;
             }
-        } else if KZ == ANY_KZ {
-            let leaf = *cur;
-            with_const!(
-                wr.r.kz,
-                [0, 1, 2],
-                self.leaf_intersect_1::<T>(leaf, wr, hit, steps)
-            );
         } else {
             self.leaf_intersect_1::<T, KZ>(*cur, wr, hit, steps);
         }
@@ -581,14 +578,6 @@ impl Bvh {
             let bits = m.bits();
             w.prefetch_children_1(node, bits);
             WideBvh::push_any_hit(node, near, bits, true, stack);
-        } else if KZ == ANY_KZ {
-            if with_const!(
-                wr.r.kz,
-                [0, 1, 2],
-                self.leaf_occluded_1::<T>(cur, wr, t_max, steps)
-            ) {
-                return Some(true);
-            }
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);
         }
