@@ -279,12 +279,15 @@ impl WideBvh {
     /// slots. A shadow ray leaves a surface: the subtrees around its origin hold that
     /// surface, which it has left, and a blocker lies farther on (figures in
     /// benches/README.md: the order changes no answer, only how soon a walk ends).
+    /// `prefetch`: the tree whose [`WideBvh::prefetch`] each pushed child gets, in the
+    /// same pass (the single-ray walk), or `None` (the frustum walks prefetch their own).
     #[inline(always)]
     pub(super) fn push_any_hit(
         node: &WideNode,
         near: f32x8,
         mut bits: u32,
         leaves_last: bool,
+        prefetch: Option<&WideBvh>,
         stack: &mut super::slot::Stack<SlotRef, WIDE_STACK>,
     ) {
         let nd = near.to_array();
@@ -294,6 +297,9 @@ impl WideBvh {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let child = node.get(s);
+            if let Some(w) = prefetch {
+                w.prefetch(child, false);
+            }
             if !child.slot.is_interior() && leaves_last {
                 leaves |= 1 << s;
             } else if child.slot.is_interior() && nd[s] > far_t {
@@ -344,7 +350,7 @@ mod tests {
         let near = f32x8::new([0.5, 9.0, 2.0, 7.0, 1.0, 3.0, 0.0, 0.0]);
         // slot 5 missed
         let mut stack = Stack::<SlotRef, WIDE_STACK>::new();
-        WideBvh::push_any_hit(&node, near, 0b01_1111, leaves_last, &mut stack);
+        WideBvh::push_any_hit(&node, near, 0b01_1111, leaves_last, None, &mut stack);
         std::iter::from_fn(|| stack.pop().map(|r| r.child)).collect()
     }
 

@@ -576,8 +576,8 @@ impl Bvh {
             steps.boxes += 1;
             let (m, near) = wr.boxes.test(&node.bounds, t_max);
             let bits = m.bits();
-            w.prefetch_children_1(node, bits);
-            WideBvh::push_any_hit(node, near, bits, true, stack);
+            let prefetch = w.prefetches.then_some(w);
+            WideBvh::push_any_hit(node, near, bits, true, prefetch, stack);
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);
         }

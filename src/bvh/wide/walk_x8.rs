@@ -761,7 +761,7 @@ impl Bvh {
                     bits = entered_leaves(r, node, bits, left, t_max);
                 }
                 w.prefetch_children(node, bits, true);
-                WideBvh::push_any_hit(node, near, bits, false, &mut stack);
+                WideBvh::push_any_hit(node, near, bits, false, None, &mut stack);
                 continue;
             }
             let (kind, count) = (cur.slot.kind(), cur.slot.count() as usize);
