@@ -348,6 +348,13 @@ fn packet(origin: &[Vec3], dir: &[Vec3], b: usize, n: usize, active: Mask8) -> R
     }
 }
 
+/// What the trace writes for a ray's hit: its distance, −1 for a miss (picked, not
+/// branched on, as the Embree harness's `?:`).
+#[inline(always)]
+fn hit_t(h: &Hit1) -> f32 {
+    [-1.0, h.t][usize::from(h.is_hit())]
+}
+
 /// Traces every ray of `rays`, writing the hit distance (−1 for a miss) per ray.
 pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
     chunks(t_out, |(c, out): (usize, &mut [f32])| {
@@ -361,7 +368,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                 let mut hs = vec![Hit1::new(f32::INFINITY); rs.len()];
                 bvh.intersect_stream::<Watertight>(&rs, &mut hs, &mut steps);
                 for (t, h) in out.iter_mut().zip(&hs) {
-                    *t = if h.is_hit() { h.t } else { -1.0 };
+                    *t = hit_t(h);
                 }
             }
             Mode::Single | Mode::SingleBinary => {
@@ -373,7 +380,7 @@ pub fn trace(bvh: &Bvh, rays: &RaySet, mode: Mode, t_out: &mut [f32]) -> Steps {
                     } else {
                         bvh.intersect_1_binary::<Watertight>(&r, &mut h, &mut steps);
                     }
-                    *t = if h.is_hit() { h.t } else { -1.0 };
+                    *t = hit_t(&h);
                 }
             }
             Mode::Packet8 | Mode::Packet8Binary => {

@@ -123,9 +123,6 @@ impl BoxRay {
     /// that the walk would otherwise fetch at nearly every hit.
     #[inline(always)]
     fn leaf_lanes(&self, b: &TriBlock, leaf: &[f32x8; 6], m: Mask8, t_max: f32) -> Mask8 {
-        if b.one_leaf {
-            return m;
-        }
         let v = &b.tri.v;
         // clamped as `PrimSet::bounds` clamps the boxes the leaf boxes are the union of
         // (clamping is monotone, so it keeps the containment)
@@ -141,7 +138,10 @@ impl BoxRay {
         let own = [
             own[0][0], own[0][1], own[1][0], own[1][1], own[2][0], own[2][1],
         ];
-        let pass = m & self.test(&own, t_max).0;
+        // (a block of one leaf passes whole: its flag picked, not branched on, after a
+        // test it does not need)
+        let whole = Mask8::from_bits(u32::from(b.one_leaf).wrapping_neg() & 0xff);
+        let pass = m & (self.test(&own, t_max).0 | whole);
         if pass.bits() == m.bits() {
             return m;
         }
