@@ -221,20 +221,31 @@ impl WideBvh {
     /// nearest by entry distance `near` onto `stack`, farthest first (keys: the
     /// distance's bits, >= 0 so ordered as integers, then the slot; insertion sort, at
     /// most 8), and returns the nearest, to visit next. Shared by the single-ray and the
-    /// frustum packet walks.
+    /// frustum packet walks. `prefetch`: the tree (and whether with the blocks' leaf
+    /// boxes) whose [`WideBvh::prefetch`] each child gets as the pass meets it (the
+    /// frustum walks), or `None` (the single-ray walk prefetches its hit children in a
+    /// loop of their own, before: folded in here it ran 0.98–0.99).
     #[inline(always)]
     pub(super) fn push_ordered(
         node: &WideNode,
         near: f32x8,
         first: usize,
         mut bits: u32,
+        prefetch: Option<(&WideBvh, bool)>,
         stack: &mut super::slot::Stack<Pending, WIDE_STACK>,
     ) -> SlotRef {
         let nd = near.to_array();
         let key = |s: usize| ((nd[s].to_bits() & 0x7fff_ffff) as u64) << 32 | s as u64;
+        let fetch = |s: usize| {
+            if let Some((w, boxes)) = prefetch {
+                w.prefetch(node.get(s), boxes);
+            }
+        };
+        fetch(first);
         if bits & (bits - 1) == 0 {
             // two: the nearer next, the other pushed (the same order as the keys give)
             let second = bits.trailing_zeros() as usize;
+            fetch(second);
             let (near_s, far_s) = if key(second) < key(first) {
                 (second, first)
             } else {
@@ -252,6 +263,7 @@ impl WideBvh {
         while bits != 0 {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
+            fetch(s);
             // insertion, descending
             let k = key(s);
             let mut j = n;
@@ -279,15 +291,15 @@ impl WideBvh {
     /// slots. A shadow ray leaves a surface: the subtrees around its origin hold that
     /// surface, which it has left, and a blocker lies farther on (figures in
     /// benches/README.md: the order changes no answer, only how soon a walk ends).
-    /// `prefetch`: the tree whose [`WideBvh::prefetch`] each pushed child gets, in the
-    /// same pass (the single-ray walk), or `None` (the frustum walks prefetch their own).
+    /// `prefetch`: the tree (and whether with the blocks' leaf boxes) whose
+    /// [`WideBvh::prefetch`] each pushed child gets in the same pass, or `None`.
     #[inline(always)]
     pub(super) fn push_any_hit(
         node: &WideNode,
         near: f32x8,
         mut bits: u32,
         leaves_last: bool,
-        prefetch: Option<&WideBvh>,
+        prefetch: Option<(&WideBvh, bool)>,
         stack: &mut super::slot::Stack<SlotRef, WIDE_STACK>,
     ) {
         let nd = near.to_array();
@@ -297,8 +309,8 @@ impl WideBvh {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let child = node.get(s);
-            if let Some(w) = prefetch {
-                w.prefetch(child, false);
+            if let Some((w, boxes)) = prefetch {
+                w.prefetch(child, boxes);
             }
             if !child.slot.is_interior() && leaves_last {
                 leaves |= 1 << s;

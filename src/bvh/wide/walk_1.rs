@@ -442,7 +442,7 @@ impl Bvh {
                     node.get(first)
                 } else {
                     // two or more: nearest next, the others pushed farthest first
-                    WideBvh::push_ordered(node, near, first, bits, stack)
+                    WideBvh::push_ordered(node, near, first, bits, None, stack)
                 };
                 return true;
             }
@@ -576,7 +576,7 @@ impl Bvh {
             steps.boxes += 1;
             let (m, near) = wr.boxes.test(&node.bounds, t_max);
             let bits = m.bits();
-            let prefetch = w.prefetches.then_some(w);
+            let prefetch = w.prefetches.then_some((w, false));
             WideBvh::push_any_hit(node, near, bits, true, prefetch, stack);
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);

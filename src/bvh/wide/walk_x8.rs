@@ -528,10 +528,10 @@ impl Bvh {
                         cur = node.get(first);
                         continue 'walk;
                     }
-                    // prefetched only here, where children are pushed
-                    w.prefetch_children(node, bits | 1 << first, true);
-                    // two or more: nearest next, the others pushed farthest first
-                    cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
+                    // two or more: nearest next, the others pushed farthest first, each
+                    // prefetched as it is met (only here, where children are pushed)
+                    let prefetch = Some((w, true));
+                    cur = WideBvh::push_ordered(node, near, first, bits, prefetch, &mut stack);
                     continue 'walk;
                 }
             } else {
@@ -596,8 +596,8 @@ impl Bvh {
                         cur = node.get(first);
                         continue 'walk;
                     }
-                    w.prefetch_children(node, bits | 1 << first, true);
-                    cur = WideBvh::push_ordered(node, near, first, bits, &mut stack);
+                    let prefetch = Some((w, true));
+                    cur = WideBvh::push_ordered(node, near, first, bits, prefetch, &mut stack);
                     continue 'walk;
                 }
             } else {
@@ -760,8 +760,7 @@ impl Bvh {
                 if P::LEAVES_PER_LANE {
                     bits = entered_leaves(r, node, bits, left, t_max);
                 }
-                w.prefetch_children(node, bits, true);
-                WideBvh::push_any_hit(node, near, bits, false, None, &mut stack);
+                WideBvh::push_any_hit(node, near, bits, false, Some((w, true)), &mut stack);
                 continue;
             }
             let (kind, count) = (cur.slot.kind(), cur.slot.count() as usize);
