@@ -155,9 +155,35 @@ pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
 impl WideBvh {
     /// Asks for a child's node or first triangle block (`boxes`: and its leaf boxes) to
     /// be brought into the cache: the slab test reads the box lines, then the child or
-    /// triangle lines, each a miss of its own on incoherent rays without this.
+    /// triangle lines, each a miss of its own on incoherent rays without this. Without
+    /// `boxes` (the single-ray walks), the address is picked, not branched on by the
+    /// child's kind (its node's four lines, or its block's five; a leaf of another kind
+    /// gets a block's address that no walk reads, and a prefetch never faults): torus100k
+    /// incoherent `1s` 4.97–5.04 → 5.21–5.33 Mrays/s, 5 interleaved rounds.
     #[inline(always)]
     pub(super) fn prefetch(&self, r: SlotRef, boxes: bool) {
+        #[cfg(target_arch = "x86_64")]
+        if !boxes {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let c = r.child as usize;
+            let interior = r.slot.is_interior();
+            let node = self.nodes.as_ptr().wrapping_add(c).cast::<i8>();
+            let block = self.blocks.as_ptr().wrapping_add(c).cast::<i8>();
+            let p = if interior { node } else { block };
+            // a node's four lines (the first again), a block's five
+            let fifth = if interior { 0 } else { 256 };
+            // SAFETY: SSE is part of x86-64; a prefetch never faults or writes, whatever
+            // the address. (Written out here: through a helper taking the address and
+            // the offset, the walks ran 0.95 of this.)
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(192));
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(fifth));
+            }
+            return;
+        }
         if r.slot.is_interior() {
             if let Some(n) = self.nodes.get(r.child as usize) {
                 prefetch_lines(n);
