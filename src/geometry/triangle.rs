@@ -810,17 +810,26 @@ mod tests {
         moved_block_lanes::<crate::geometry::moller::Moller>();
     }
 
+    /// Round `round`'s cluster of eight random triangles at one of three scales: the
+    /// scale, its centre, the triangles and their block.
+    fn cluster(
+        rnd: &mut impl FnMut() -> f32,
+        round: usize,
+    ) -> (f32, Vec3, [Triangle32; 8], Triangle8) {
+        let scale = [1.0f32, 1e3, 3e5][round % 3];
+        let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
+        let tris: [Triangle32; 8] = std::array::from_fn(|_| Triangle32 {
+            v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
+        });
+        (scale, centre, tris, Triangle8::new(&tris))
+    }
+
     fn moved_block_lanes<T: TriangleKernel>() {
         let mut rng = Xorshift(0x9e37_79b9_7f4a_7c15);
         let mut rnd = move || rng.f32() * 2.0 - 1.0;
         let (mut hits, mut mixed) = (0, 0);
         for round in 0..300 {
-            let scale = [1.0f32, 1e3, 3e5][round % 3];
-            let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
-            let tris: [Triangle32; 8] = std::array::from_fn(|_| Triangle32 {
-                v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
-            });
-            let block = Triangle8::new(&tris);
+            let (scale, centre, tris, block) = cluster(&mut rnd, round);
             // the eye off to one side of the cluster, by axis in turn (each kz), every
             // fourth round off along a diagonal (lanes of different kz)
             let mut eye = centre;
@@ -877,12 +886,7 @@ mod tests {
         let mut rnd = move || rng.f32() * 2.0 - 1.0;
         let (mut hits, mut by_axis) = (0, [0; 3]);
         for round in 0..600 {
-            let scale = [1.0f32, 1e3, 3e5][round % 3];
-            let centre = Vec3::new(rnd(), rnd(), rnd()) * scale;
-            let tris: [Triangle32; 8] = std::array::from_fn(|_| Triangle32 {
-                v: [0; 3].map(|_| centre + Vec3::new(rnd(), rnd(), rnd()) * (0.01 * scale)),
-            });
-            let block = Triangle8::new(&tris);
+            let (scale, centre, tris, block) = cluster(&mut rnd, round);
             let mut eye = centre;
             eye[round % 3] += if round % 2 == 0 { 0.2 } else { -0.2 } * scale;
             // at one triangle's centroid (a hit in its lane, and in others it crosses)
