@@ -475,7 +475,10 @@ impl Triangle8 {
     }
 
     /// Lane i of `active`: [`Triangle32::intersect_1`] of triangle i (hit in (0, t_max],
-    /// t, b1, b2).
+    /// t, b1, b2), the ray's permutation read from `r.axes` at run time: each vertex
+    /// vector loaded from the block at its axis's offset (by reference, so no copy of
+    /// the nine goes through the stack), the same operations on the same operands as
+    /// [`Triangle8::intersect_1x8_kz`].
     #[inline(always)]
     pub fn intersect_1x8(
         &self,
@@ -483,16 +486,24 @@ impl Triangle8 {
         active: Mask8,
         t_max: f32,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
-        match r.axes[2] {
-            0 => self.intersect_1x8_kz::<0>(r, active, t_max),
-            1 => self.intersect_1x8_kz::<1>(r, active, t_max),
-            _ => self.intersect_1x8_kz::<2>(r, active, t_max),
-        }
+        let [kx, ky, kz] = r.axes;
+        let v = &self.v;
+        let moved = |i: usize| {
+            let q = &v[i];
+            [
+                q[kx] - r.origin[0],
+                q[ky] - r.origin[1],
+                q[kz] - r.origin[2],
+            ]
+        };
+        let p = [moved(0), moved(1), moved(2)];
+        let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
+        sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
     }
 
     /// [`Triangle8::intersect_1x8`] for a ray whose largest direction component is
     /// axis `KZ` (`r.axes[2] == KZ`): the permutation fixed at compile time, one copy of
-    /// the kernel per axis ([`Triangle8::intersect_1x8_axes`] reads it at run time).
+    /// the kernel per axis ([`Triangle8::intersect_1x8`] reads it at run time).
     #[inline(always)]
     pub fn intersect_1x8_kz<const KZ: usize>(
         &self,
@@ -512,32 +523,6 @@ impl Triangle8 {
             ]
         });
         // shear so the ray runs along +z
-        let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
-        sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
-    }
-
-    /// [`Triangle8::intersect_1x8_kz`] with the permutation read from `r.axes` at run
-    /// time: each vertex vector loaded from the block at its axis's offset (by
-    /// reference, so no copy of the nine goes through the stack), the same operations
-    /// on the same operands.
-    #[inline(always)]
-    pub fn intersect_1x8_axes(
-        &self,
-        r: &TriRay8,
-        active: Mask8,
-        t_max: f32,
-    ) -> (Mask8, f32x8, f32x8, f32x8) {
-        let [kx, ky, kz] = r.axes;
-        let v = &self.v;
-        let moved = |i: usize| {
-            let q = &v[i];
-            [
-                q[kx] - r.origin[0],
-                q[ky] - r.origin[1],
-                q[kz] - r.origin[2],
-            ]
-        };
-        let p = [moved(0), moved(1), moved(2)];
         let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
         sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
     }
@@ -729,7 +714,7 @@ impl TriangleKernel for Watertight {
         t_max: f32,
     ) -> Hits8 {
         if KZ > 2 {
-            b.intersect_1x8_axes(r, active, t_max)
+            b.intersect_1x8(r, active, t_max)
         } else {
             b.intersect_1x8_kz::<KZ>(r, active, t_max)
         }
@@ -910,7 +895,7 @@ mod tests {
                 1 => block.intersect_1x8_kz::<1>(&tr, active, t_max),
                 _ => block.intersect_1x8_kz::<2>(&tr, active, t_max),
             };
-            let got = block.intersect_1x8_axes(&tr, active, t_max);
+            let got = block.intersect_1x8(&tr, active, t_max);
             assert_eq!(got.0.bits(), want.0.bits(), "round {round}: the lanes hit");
             for l in (0..8).filter(|&l| want.0.lane(l)) {
                 let bits = |h: &(Mask8, f32x8, f32x8, f32x8)| {

@@ -198,22 +198,17 @@ impl WideBvh {
         }
     }
 
-    /// The single-ray walks' [`WideBvh::prefetch_children`]: only in trees that need
-    /// it ([`WideBvh::prefetches`]).
+    /// The single-ray closest-hit walk's [`WideBvh::prefetch`] of the children `bits` of
+    /// `node`, in a loop of its own: only in trees that need it ([`WideBvh::prefetches`]).
+    /// (The other walks prefetch in their push pass.)
     #[inline(always)]
-    pub(super) fn prefetch_children_1(&self, node: &WideNode, bits: u32) {
+    pub(super) fn prefetch_children_1(&self, node: &WideNode, mut bits: u32) {
         if self.prefetches {
-            self.prefetch_children(node, bits, false);
-        }
-    }
-
-    /// [`WideBvh::prefetch`] of the children `bits` of `node`.
-    #[inline(always)]
-    pub(super) fn prefetch_children(&self, node: &WideNode, mut bits: u32, boxes: bool) {
-        while bits != 0 {
-            let s = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            self.prefetch(node.get(s), boxes);
+            while bits != 0 {
+                let s = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                self.prefetch(node.get(s), false);
+            }
         }
     }
 

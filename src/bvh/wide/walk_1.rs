@@ -75,7 +75,7 @@ fn in_turn(mut live: u32, mut step: impl FnMut(usize) -> bool) {
 /// [`Bvh::step_1`]'s and [`Bvh::occluded_step_1`]'s `KZ` for walks whose ray's
 /// permutation is read at run time (walks of different rays stepped in turn): the
 /// triangle kernel loads each vertex vector at its axis's offset
-/// ([`Triangle8::intersect_1x8_axes`](crate::geometry::triangle::Triangle8::intersect_1x8_axes)),
+/// ([`Triangle8::intersect_1x8`](crate::geometry::triangle::Triangle8::intersect_1x8)),
 /// where a jump at each leaf to a copy of the leaf per permutation mispredicted about
 /// once a ray (figures in `benches/README.md`).
 const ANY_KZ: usize = 3;
