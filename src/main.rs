@@ -605,6 +605,8 @@ struct Frame {
     /// Building the BVH and photon map for the frame's eye.
     prepare_s: f64,
     render_s: f64,
+    /// The frame of a camera path whose preparation this one used, when not its own.
+    kept_from: Option<u32>,
 }
 
 impl Frame {
@@ -612,9 +614,12 @@ impl Frame {
     fn summary(&self, write_s: f64) -> String {
         let s = &self.piece.stats;
         let secs = self.prepare_s + self.render_s;
+        let prepare = match self.kept_from {
+            Some(k) => format!("prepared with frame {k}"),
+            None => format!("prepare {:.3} s", self.prepare_s),
+        };
         format!(
-            "{secs:.3} s (prepare {:.3} s, render {:.3} s; write {write_s:.3} s), {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s",
-            self.prepare_s,
+            "{secs:.3} s ({prepare}, render {:.3} s; write {write_s:.3} s), {:.2} M rays ({} primary, {} shadow, {} reflection), {:.2} Mrays/s",
             self.render_s,
             s.total_rays() as f64 / 1e6,
             s.primary_rays,
@@ -634,17 +639,48 @@ fn render_frame(
     settings: &RenderSettings,
     rects: &[PixelRect],
 ) -> Frame {
+    render_kept(scene, profile, settings, rects, &mut None, 0)
+}
+
+/// A scene prepared for a frame of a camera path, and that frame's number.
+type Kept<'a> = Option<(octaray::render::prepared::Prepared<'a>, u32)>;
+
+/// [`render_frame`] of frame `frame` of a camera path with the preparation of an earlier
+/// frame, `kept`, when it is what this frame's would be: the packet path's in the same
+/// f32 frame (`frame_origin`: a mesh of f32 vertices near the world origin keeps the
+/// world origin along a whole path), or the reference's, which has none. Otherwise the
+/// scene is prepared anew and kept in its place, the old one dropped first (one prepared
+/// scene in memory at a time).
+fn render_kept<'a>(
+    scene: &'a octaray::scene::Scene,
+    profile: &Profile,
+    settings: &RenderSettings,
+    rects: &[PixelRect],
+    kept: &mut Kept<'a>,
+    frame: u32,
+) -> Frame {
     let start = std::time::Instant::now();
     let origin = octaray::render::prepared::frame_origin(scene, settings.camera.eye);
-    let prepared = profile.prepare(scene, origin);
+    let kept_from = match kept {
+        Some((p, k)) if p.origin().is_none_or(|o| o == origin) => Some(*k),
+        _ => {
+            *kept = None;
+            *kept = Some((profile.prepare(scene, origin), frame));
+            None
+        }
+    };
+    let (prepared, _) = kept.as_ref().expect("prepared above");
     let prepare_s = start.elapsed().as_secs_f64();
-    let piece = octaray::farm::render_piece(&prepared, settings, rects);
+    let piece = octaray::farm::render_piece(prepared, settings, rects);
     let render_s = start.elapsed().as_secs_f64() - prepare_s;
-    warn_f32_detail(scene, &prepared);
+    if kept_from.is_none() {
+        warn_f32_detail(scene, prepared);
+    }
     Frame {
         piece,
         prepare_s,
         render_s,
+        kept_from,
     }
 }
 
@@ -715,6 +751,7 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
     let (scene, name, size) = load_sized(args)?;
     let mut profile = load_profile("--profile", &args.profile)?;
     profile.packet.isa = chosen_isa(args.isa.as_deref())?;
+    let mut kept: Kept = None;
     for k in first..=last {
         let out = pattern.name(k);
         if args.skip_existing && exists(&out) {
@@ -734,7 +771,7 @@ fn run_frames(args: &RenderArgs) -> Result<(), Failure> {
             progress: true,
         };
         let full = [PixelRect::full(size.width, size.height)];
-        let frame = render_frame(&scene, &profile, &settings, &full);
+        let frame = render_kept(&scene, &profile, &settings, &full, &mut kept, k);
         let start = std::time::Instant::now();
         write_frame(&frame.piece, &out, &scene, &profile, &settings, None)?;
         say!(

@@ -382,6 +382,94 @@ fn camera_path_frames_equal_one_process_renders() {
     }
 }
 
+/// A camera path over a mesh of f32 vertices prepares the scene once for the frames
+/// whose eyes keep the f32 frame at the world origin (`frame_origin`), and anew where
+/// an eye moves it; every frame still equals its one-process render byte for byte.
+#[test]
+fn camera_path_frames_keep_one_preparation_while_the_frame_origin_stays() {
+    let d = dir("kept");
+    // a 40 × 40 grid of quads around the origin, coordinates exact in f32
+    let mut obj = String::new();
+    for i in 0..=40 {
+        for j in 0..=40 {
+            let z = 0.25 * ((i * j) % 3) as f64;
+            obj += &format!(
+                "v {} {} {z}\n",
+                i as f64 * 0.5 - 10.0,
+                j as f64 * 0.5 - 10.0
+            );
+        }
+    }
+    for i in 0..40 {
+        for j in 0..40 {
+            let a = i * 41 + j + 1;
+            obj += &format!("f {a} {} {} {}\n", a + 41, a + 42, a + 1);
+        }
+    }
+    fs::write(d.join("m.obj"), &obj).unwrap();
+    let scene_file = d.join("s.txt");
+    fs::write(
+        &scene_file,
+        "2 8 1 mesh m.obj  0.2 0.6 0.9  0.2 0.7 0.3 0.2  8  1 3 -4 6 1 1 1 0\n",
+    )
+    .unwrap();
+    // frames 0 and 1 near the mesh keep the world origin; frame 2, low over its
+    // corner, takes the f32 frame at its eye; frame 3 is back near the middle
+    let path = d.join("path.txt");
+    fs::write(
+        &path,
+        "0 -6 4  0 0 0  0 0 1  60\n\
+         1 -6 4.5  0 0 0  0 0 1  60\n\
+         9 9 0.75  0 0 0  0 0 1  60\n\
+         -1 -6 4  0 0 0  0 0 1  60\n",
+    )
+    .unwrap();
+    let frames = d.join("f_%d.bmp");
+    let args = ["render", p(&scene_file), "--size", "64x48"];
+    let out = run(&[&args[..], &["--camera-path", p(&path), "-o", p(&frames)]].concat());
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    let line = |k: usize| {
+        err.lines()
+            .find(|l| l.contains(&format!(": frame {k} (")))
+            .unwrap_or_else(|| panic!("no summary of frame {k} in: {err}"))
+            .to_string()
+    };
+    assert!(line(0).contains("(prepare "), "{}", line(0));
+    assert!(line(1).contains("(prepared with frame 0,"), "{}", line(1));
+    assert!(line(2).contains("(prepare "), "{}", line(2));
+    assert!(line(3).contains("(prepare "), "{}", line(3));
+    for (k, c) in read_camera_path(&path).unwrap().iter().enumerate() {
+        let one = d.join(format!("one_{k}.bmp"));
+        let (eye, at, up, fov) = (
+            v3(c.eye),
+            v3(c.look_at),
+            v3(c.up),
+            format!("{:?}", c.fov_y_deg),
+        );
+        ok(&[
+            &args[..],
+            &[
+                "--eye",
+                &eye,
+                "--look-at",
+                &at,
+                "--up",
+                &up,
+                "--fov",
+                &fov,
+                "-o",
+                p(&one),
+            ],
+        ]
+        .concat());
+        assert!(
+            fs::read(d.join(format!("f_{k}.bmp"))).unwrap() == fs::read(&one).unwrap(),
+            "frame {k} differs from the one-process render"
+        );
+    }
+}
+
 #[test]
 fn skip_existing_leaves_finished_frames_alone() {
     let d = dir("skip");
