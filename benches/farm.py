@@ -8,7 +8,8 @@ frames per hour"), from whole processes:
      BVH build, photon map, digest, exit) is the per-tile overhead; and the same frame
      cut into 16 contiguous bands of rows (--crop), against the 16 interleaved tiles;
   2. frames per hour of a 4K flythrough: a camera path of FRAMES frames rendered by one
-     process, each frame prepared at its own eye.
+     process, each frame prepared in the f32 frame its eye picks (frames that pick the
+     same one share a preparation: `prepared with frame K`, counted as 0 s here).
 
     benches/farm.py [--bin target/release/octaray] [--threads 2] [--frames 4] [--size 3840x2160]
 
@@ -26,7 +27,8 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-LINE = re.compile(r"prepare ([0-9.]+) s, render ([0-9.]+) s; write ([0-9.]+) s\), ([0-9.]+) M rays")
+LINE = re.compile(r"\((?:prepare ([0-9.]+) s|prepared with frame \d+), render ([0-9.]+) s; write ([0-9.]+) s\), "
+                  r"([0-9.]+) M rays")
 
 
 def load():
@@ -42,7 +44,7 @@ def run(bin, args):
     wall = time.perf_counter() - start
     if out.returncode != 0:
         sys.exit(f"octaray {' '.join(args)} failed: {out.stderr}")
-    frames = [tuple(map(float, m.groups())) for m in map(LINE.search, out.stderr.splitlines()) if m]
+    frames = [tuple(float(g or 0) for g in m.groups()) for m in map(LINE.search, out.stderr.splitlines()) if m]
     return wall, frames
 
 
