@@ -475,10 +475,7 @@ impl Triangle8 {
     }
 
     /// Lane i of `active`: [`Triangle32::intersect_1`] of triangle i (hit in (0, t_max],
-    /// t, b1, b2), the ray's permutation read from `r.axes` at run time: each vertex
-    /// vector loaded from the block at its axis's offset (by reference, so no copy of
-    /// the nine goes through the stack), the same operations on the same operands as
-    /// [`Triangle8::intersect_1x8_kz`].
+    /// t, b1, b2), the ray's permutation read from `r.axes` at run time.
     #[inline(always)]
     pub fn intersect_1x8(
         &self,
@@ -486,8 +483,37 @@ impl Triangle8 {
         active: Mask8,
         t_max: f32,
     ) -> (Mask8, f32x8, f32x8, f32x8) {
-        let [kx, ky, kz] = r.axes;
+        self.intersect_1x8_axes(r, r.axes, active, t_max)
+    }
+
+    /// [`Triangle8::intersect_1x8`] for a ray whose largest direction component is
+    /// axis `KZ` (`r.axes[2] == KZ`): the permutation fixed at compile time, one copy of
+    /// the kernel per axis.
+    #[inline(always)]
+    pub fn intersect_1x8_kz<const KZ: usize>(
+        &self,
+        r: &TriRay8,
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
+        debug_assert_eq!(r.axes[2], KZ);
+        self.intersect_1x8_axes(r, [(KZ + 1) % 3, (KZ + 2) % 3, KZ], active, t_max)
+    }
+
+    /// The 1×8 test with the permutation `[kx, ky, kz]` (`r.axes`, or the same axes as
+    /// constants): each vertex vector loaded from the block at its axis's offset (by
+    /// reference, so no copy of the nine goes through the stack).
+    #[inline(always)]
+    fn intersect_1x8_axes(
+        &self,
+        r: &TriRay8,
+        [kx, ky, kz]: [usize; 3],
+        active: Mask8,
+        t_max: f32,
+    ) -> (Mask8, f32x8, f32x8, f32x8) {
         let v = &self.v;
+        // translate the vertices to the ray origin, permuted so that the largest
+        // direction component is z
         let moved = |i: usize| {
             let q = &v[i];
             [
@@ -497,31 +523,6 @@ impl Triangle8 {
             ]
         };
         let p = [moved(0), moved(1), moved(2)];
-        let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
-        sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
-    }
-
-    /// [`Triangle8::intersect_1x8`] for a ray whose largest direction component is
-    /// axis `KZ` (`r.axes[2] == KZ`): the permutation fixed at compile time, one copy of
-    /// the kernel per axis ([`Triangle8::intersect_1x8`] reads it at run time).
-    #[inline(always)]
-    pub fn intersect_1x8_kz<const KZ: usize>(
-        &self,
-        r: &TriRay8,
-        active: Mask8,
-        t_max: f32,
-    ) -> (Mask8, f32x8, f32x8, f32x8) {
-        debug_assert_eq!(r.axes[2], KZ);
-        // translate the vertices to the ray origin
-        // permute so that the largest direction component is z
-        let [kx, ky, kz] = [(KZ + 1) % 3, (KZ + 2) % 3, KZ];
-        let p = self.v.map(|q| {
-            [
-                q[kx] - r.origin[0],
-                q[ky] - r.origin[1],
-                q[kz] - r.origin[2],
-            ]
-        });
         // shear so the ray runs along +z
         let p = p.map(|q| [q[0] + r.shear[0] * q[2], q[1] + r.shear[1] * q[2], q[2]]);
         sheared_x8(p, r.shear[2], active, f32x8::splat(t_max))
@@ -861,10 +862,11 @@ mod tests {
         assert!(mixed > 10, "too few packets of mixed permutations: {mixed}");
     }
 
-    /// The 1×8 kernel with the permutation read at run time (the stepped walks') gives
-    /// every lane the bits the kernel of the permutation fixed at compile time gives it:
-    /// rays along each axis in turn and along diagonals (ties of |d|), near and far
-    /// clusters, hits and misses, lanes left out of `active`.
+    /// The 1×8 kernel with the permutation read at run time (the stepped walks', from
+    /// `TriRay8::axes`) gives every lane the bits the kernel of the permutation fixed at
+    /// compile time gives it (one body: the run-time axes are the constant ones of the
+    /// ray's `kz`): rays along each axis in turn and along diagonals (ties of |d|), near
+    /// and far clusters, hits and misses, lanes left out of `active`.
     #[test]
     fn the_run_time_permutation_is_the_compile_time_ones() {
         let mut rng = Xorshift(0x51_7cc1_b727_220a);
