@@ -12,7 +12,7 @@ mod common;
 use common::Scratch;
 use octaray::output::Framebuffer;
 use octaray::output::tile::read_meta;
-use octaray::scene::camera_path::read_camera_path;
+use octaray::scene::camera_path::{PathCamera, read_camera_path};
 
 const BIN: &str = env!("CARGO_BIN_EXE_octaray");
 
@@ -310,6 +310,34 @@ fn v3(v: glam::DVec3) -> String {
     format!("{:?},{:?},{:?}", v.x, v.y, v.z)
 }
 
+/// The bytes of `render_args` rendered with camera `c` of a path as
+/// `--eye --look-at --up --fov` in one process, written to `out`.
+fn one_process_render(render_args: &[&str], c: &PathCamera, out: &Path) -> Vec<u8> {
+    let (eye, at, up, fov) = (
+        v3(c.eye),
+        v3(c.look_at),
+        v3(c.up),
+        format!("{:?}", c.fov_y_deg),
+    );
+    ok(&[
+        render_args,
+        &[
+            "--eye",
+            &eye,
+            "--look-at",
+            &at,
+            "--up",
+            &up,
+            "--fov",
+            &fov,
+            "-o",
+            p(out),
+        ],
+    ]
+    .concat());
+    fs::read(out).unwrap()
+}
+
 /// A frame of a camera path equals `render --eye --look-at --up --fov` of its line:
 /// the same file, byte for byte (pixels and the record of the settings).
 #[test]
@@ -345,32 +373,10 @@ fn camera_path_frames_equal_one_process_renders() {
         ]
         .concat());
         for (k, c) in cameras.iter().enumerate() {
-            let one = d.join(format!("one_{k}.png"));
-            let (eye, at, up, fov) = (
-                v3(c.eye),
-                v3(c.look_at),
-                v3(c.up),
-                format!("{:?}", c.fov_y_deg),
-            );
-            ok(&[
-                &args[..],
-                &[
-                    "--eye",
-                    &eye,
-                    "--look-at",
-                    &at,
-                    "--up",
-                    &up,
-                    "--fov",
-                    &fov,
-                    "-o",
-                    p(&one),
-                ],
-            ]
-            .concat());
+            let one = one_process_render(&args, c, &d.join(format!("one_{k}.png")));
             let frame = d.join(format!("f_{k:04}.png"));
             assert!(
-                fs::read(&frame).unwrap() == fs::read(&one).unwrap(),
+                fs::read(&frame).unwrap() == one,
                 "{scene_args:?}: frame {k} differs from the one-process render"
             );
         }
@@ -440,31 +446,9 @@ fn camera_path_frames_keep_one_preparation_while_the_frame_origin_stays() {
     assert!(line(2).contains("(prepare "), "{}", line(2));
     assert!(line(3).contains("(prepare "), "{}", line(3));
     for (k, c) in read_camera_path(&path).unwrap().iter().enumerate() {
-        let one = d.join(format!("one_{k}.bmp"));
-        let (eye, at, up, fov) = (
-            v3(c.eye),
-            v3(c.look_at),
-            v3(c.up),
-            format!("{:?}", c.fov_y_deg),
-        );
-        ok(&[
-            &args[..],
-            &[
-                "--eye",
-                &eye,
-                "--look-at",
-                &at,
-                "--up",
-                &up,
-                "--fov",
-                &fov,
-                "-o",
-                p(&one),
-            ],
-        ]
-        .concat());
+        let one = one_process_render(&args, c, &d.join(format!("one_{k}.bmp")));
         assert!(
-            fs::read(d.join(format!("f_{k}.bmp"))).unwrap() == fs::read(&one).unwrap(),
+            fs::read(d.join(format!("f_{k}.bmp"))).unwrap() == one,
             "frame {k} differs from the one-process render"
         );
     }
