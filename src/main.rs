@@ -602,7 +602,8 @@ fn describe_piece(settings: &RenderSettings, piece: &Piece, tile: Option<(u32, u
 /// A rendered frame (or piece) and where its time went.
 struct Frame {
     piece: Piece,
-    /// Building the BVH and photon map for the frame's eye.
+    /// Building the BVH and photon map for the frame's eye (for a frame that keeps an
+    /// earlier frame's, only choosing its f32 frame).
     prepare_s: f64,
     render_s: f64,
     /// The frame of a camera path whose preparation this one used, when not its own.
