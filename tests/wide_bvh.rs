@@ -145,6 +145,11 @@ fn rays_of(set: &octaray::bvh::bench::RaySet) -> Vec<Ray1> {
         .collect()
 }
 
+/// The triangles of a set, in index order.
+fn triangles_of(p: &PrimSet) -> Vec<Triangle32> {
+    p.each_triangle().map(|(_, t)| t).collect()
+}
+
 /// Rays aimed exactly at vertices and at points on (or within an ulp of) edges of
 /// random triangles, from random origins.
 fn edge_rays(tris: &[Triangle32], n: usize, lo: Vec3, hi: Vec3, rng: &mut Rng) -> Vec<Ray1> {
@@ -279,7 +284,7 @@ fn wide_equals_binary_on_a_mixed_scene() {
     let p = &bvh.prims;
     assert!(
         !p.spheres.is_empty()
-            && !p.triangles.is_empty()
+            && !p.blocks.is_empty()
             && !p.quadrics.is_empty()
             && !p.free_quadrics.is_empty()
             && p.floor.is_some(),
@@ -312,7 +317,7 @@ fn wide_equals_binary_on_a_mixed_scene() {
         );
         rays.push(Ray1::new(o, (b.centroid() - o).normalize()));
     }
-    rays.extend(edge_rays(&p.triangles, 3_000, lo, hi, &mut rng));
+    rays.extend(edge_rays(&triangles_of(p), 3_000, lo, hi, &mut rng));
     rays.extend(signed_zero_rays(lo, hi, 20));
     let (t, sw, _) = compare("mixed", &bvh, &rays, &mut rng);
     assert!(t.hits > t.rays / 3, "{t:?}");
@@ -360,7 +365,7 @@ fn wide_equals_binary_past_the_clamped_bounds() {
     };
     let bvh = Bvh::build(PrimSet::from_triangles(vec![far, near]));
     assert!(
-        bvh.wide.blocks.iter().any(|b| !b.one_leaf),
+        bvh.prims.blocks.iter().any(|b| !b.one_leaf),
         "the two triangles share a block of two binary leaves"
     );
     let mut steps = Steps::default();
@@ -427,9 +432,9 @@ fn nan_rays_never_hit() {
 #[test]
 fn only_trees_past_the_prefetch_size_prefetch() {
     let big = torus_bvh();
-    assert!(big.wide.walked_bytes() > PREFETCH_FROM && big.wide.prefetches);
+    assert!(big.walked_bytes() > PREFETCH_FROM && big.wide.prefetches);
     let small = Bvh::build(PrimSet::from_triangles(torus(24, 12)));
-    assert!(small.wide.walked_bytes() <= PREFETCH_FROM && !small.wide.prefetches);
+    assert!(small.walked_bytes() <= PREFETCH_FROM && !small.wide.prefetches);
     assert!(!Bvh::build(PrimSet::default()).wide.prefetches);
 }
 
@@ -446,26 +451,33 @@ fn empty_tree_has_no_wide_nodes_and_misses() {
 #[test]
 fn every_triangle_is_in_exactly_one_block_lane() {
     // large enough (> 4 MiB of blocks) for the huge-page copy of the block array
-    let bvh = Bvh::build(PrimSet::from_triangles(torus(320, 160)));
-    assert!(bvh.wide.blocks.len() * std::mem::size_of_val(&bvh.wide.blocks[0]) > 4 << 20);
-    let n = bvh.prims.triangles.len();
+    let tris = torus(320, 160);
+    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    assert!(bvh.prims.blocks.len() * std::mem::size_of_val(&bvh.prims.blocks[0]) > 4 << 20);
+    let n = tris.len();
     let mut seen = vec![0u32; n];
-    for b in &bvh.wide.blocks {
+    for b in &bvh.prims.blocks {
         assert!(b.count >= 1 && b.count <= 8);
         for l in 0..b.count as usize {
             let i = b.first as usize + l;
             seen[i] += 1;
-            // the lane holds that triangle's vertices
-            for (vi, p) in bvh.prims.triangles[i].v.iter().enumerate() {
-                for a in 0..3 {
-                    assert_eq!(b.tri.v[vi][a].to_array()[l], p[a]);
-                }
-            }
+            // the lane is triangle i as the set's lookup finds it
+            assert_eq!(bvh.prims.triangle(i), b.tri.lane(l));
         }
     }
     assert!(
         seen.iter().all(|&c| c == 1),
-        "a triangle is missing or repeated"
+        "a triangle index is missing or repeated"
+    );
+    // and the lanes hold the mesh's triangles, each once, bit for bit
+    let bits = |t: &Triangle32| t.v.map(|p| p.to_array().map(f32::to_bits));
+    let mut want: Vec<_> = tris.iter().map(bits).collect();
+    let mut got: Vec<_> = bvh.prims.each_triangle().map(|(_, t)| bits(&t)).collect();
+    want.sort_unstable();
+    got.sort_unstable();
+    assert!(
+        got == want,
+        "the blocks hold other triangles than the mesh's"
     );
     assert!(bvh.wide.depth() <= bvh.depth());
 }
@@ -893,7 +905,13 @@ fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds()
         );
         rays.push(Ray1::new(o, (b.centroid() - o).normalize()));
     }
-    rays.extend(edge_rays(&bvh.prims.triangles, 4_000, lo, hi, &mut rng));
+    rays.extend(edge_rays(
+        &triangles_of(&bvh.prims),
+        4_000,
+        lo,
+        hi,
+        &mut rng,
+    ));
     // grouped by signs (frustum walks) and as they come (mixed signs: lane by lane,
     // with the floor and the free quadrics beside the tree tested once per lane)
     assert!(
@@ -1146,8 +1164,14 @@ fn streams_give_every_ray_what_single_queries_give_it() {
         (&floor_s, mixed_box),
     ] {
         let mut rays = rays_of(&incoherent_rays(3_000, 5));
-        if !bvh.prims.triangles.is_empty() {
-            rays.extend(edge_rays(&bvh.prims.triangles, 2_000, lo, hi, &mut rng));
+        if !bvh.prims.blocks.is_empty() {
+            rays.extend(edge_rays(
+                &triangles_of(&bvh.prims),
+                2_000,
+                lo,
+                hi,
+                &mut rng,
+            ));
         }
         rays.extend(signed_zero_rays(lo, hi, 10));
         // rays that never enter the tree, here and there in the stream
@@ -1188,7 +1212,7 @@ fn streams_step_only_in_trees_past_their_sizes() {
         torus_bvh(),
         Bvh::build(PrimSet::from_triangles(torus(400, 100))),
     ] {
-        let bytes = bvh.wide.walked_bytes();
+        let bytes = bvh.walked_bytes();
         assert_eq!(bvh.wide.stream_steps, bytes >= STREAM_FROM, "{bytes} B");
         assert_eq!(
             bvh.wide.stream_any_hit_steps,
@@ -1200,7 +1224,7 @@ fn streams_step_only_in_trees_past_their_sizes() {
     assert!(
         big.wide.stream_steps,
         "80k triangles walk {} B",
-        big.wide.walked_bytes()
+        big.walked_bytes()
     );
     assert!(!Bvh::build(PrimSet::default()).wide.stream_steps);
 }

@@ -709,11 +709,12 @@ pub struct AccelBytes {
     pub binary_nodes: usize,
     /// The 8-wide tree's nodes.
     pub wide_nodes: usize,
-    /// The 8-wide tree's triangle blocks (copies of the triangles, SoA).
+    /// The triangle blocks (the triangles, SoA, in leaf order) and their index.
     pub wide_blocks: usize,
     /// The binary leaves' boxes per lane of the blocks.
     pub leaf_boxes: usize,
-    /// The primitive arrays in leaf order (triangles and their object indices).
+    /// The other primitive arrays in leaf order (the triangles' object indices, the
+    /// spheres and quadrics with theirs).
     pub prims: usize,
 }
 
@@ -724,7 +725,7 @@ impl AccelBytes {
         AccelBytes {
             binary_nodes: size_of_val(&bvh.nodes[..]),
             wide_nodes: size_of_val(&bvh.wide.nodes[..]),
-            wide_blocks: size_of_val(&bvh.wide.blocks[..]),
+            wide_blocks: size_of_val(&p.blocks[..]) + size_of_val(&p.block_at[..]),
             leaf_boxes: size_of_val(&bvh.wide.leaf_boxes[..]),
             prims: size_of_val(&p.triangles[..])
                 + size_of_val(&p.triangle_obj[..])
@@ -770,9 +771,9 @@ pub fn timed_build<E>(
         };
         let mut prims = PrimSet::from_triangles(input);
         let start = Instant::now();
-        let nodes = super::build::build(&mut prims);
+        let (nodes, order) = super::build::build(&mut prims);
         let built = Instant::now();
-        let wide = WideBvh::collapse(&nodes, &prims);
+        let wide = WideBvh::collapse(&nodes, &mut prims, order);
         let end = Instant::now();
         build_ms = build_ms.min((end - start).as_secs_f64() * 1e3);
         collapse_ms = collapse_ms.min((end - built).as_secs_f64() * 1e3);
@@ -904,23 +905,23 @@ pub fn run(
             bvh.depth(),
             bvh.sah_cost(),
         );
-        let w = &bvh.wide;
-        let lanes: u64 = w.blocks.iter().map(|b| b.count as u64).sum();
-        let one_leaf = w.blocks.iter().filter(|b| b.one_leaf).count();
+        let (w, blocks) = (&bvh.wide, &bvh.prims.blocks);
+        let lanes: u64 = blocks.iter().map(|b| b.count as u64).sum();
+        let one_leaf = blocks.iter().filter(|b| b.one_leaf).count();
         let _ = writeln!(
             log,
             "octaray wide bvh: collapse_ms={collapse_ms:.1} (of build_ms), {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
             w.nodes.len(),
             w.depth(),
-            w.blocks.len(),
-            lanes as f64 / w.blocks.len().max(1) as f64,
-            100.0 * one_leaf as f64 / w.blocks.len().max(1) as f64
+            blocks.len(),
+            lanes as f64 / blocks.len().max(1) as f64,
+            100.0 * one_leaf as f64 / blocks.len().max(1) as f64
         );
         let bytes = AccelBytes::of(&bvh);
         let per = |b: usize| b as f64 / ntris.max(1) as f64;
         let _ = writeln!(
             log,
-            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, wide triangle blocks {:.1}, their leaf boxes {:.1}, triangles in leaf order {:.1}{}",
+            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, triangle blocks {:.1}, their leaf boxes {:.1}, object indices {:.1}{}",
             per(bytes.total()),
             per(bytes.binary_nodes),
             per(bytes.wide_nodes),
@@ -1108,9 +1109,10 @@ mod tests {
         .unwrap();
         assert_eq!(reads, 2);
         let one = Bvh::build(PrimSet::from_triangles(tris.clone()));
-        assert_eq!(built.bvh.prims.triangles, one.prims.triangles);
+        let packed = |b: &Bvh| b.prims.each_triangle().collect::<Vec<_>>();
+        assert_eq!(packed(&built.bvh), packed(&one));
         assert_eq!(built.bvh.nodes.len(), one.nodes.len());
-        assert_eq!(built.bvh.wide.blocks.len(), one.wide.blocks.len());
+        assert_eq!(built.bvh.prims.blocks.len(), one.prims.blocks.len());
         assert!(built.build_ms >= built.collapse_ms && built.collapse_ms >= 0.0);
         let failed = timed_build(tris, || Err::<Vec<Triangle32>, _>("the mesh is gone"));
         assert_eq!(failed.err(), Some("the mesh is gone"));

@@ -178,15 +178,18 @@ impl Bounds {
 }
 
 /// Builds the node array over the BVH kinds of `prims` and reorders those kinds'
-/// arrays into leaf order. Returns the nodes (empty when there is nothing to bound).
+/// arrays into leaf order, but for the triangles themselves: returns the nodes (empty
+/// when there is nothing to bound) and the triangles' leaf order (`order[k]`: the index
+/// in `prims.triangles` of the k-th), from which the collapse packs them into blocks
+/// (`WideBvh::collapse`) without a copy in between.
 ///
 /// On more than one worker thread, the subtrees of large ranges are built in parallel
 /// (each in an array of its own, joined in the serial build's order at the end): the
 /// nodes, their order and the primitive order are those of the serial build.
-pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
+pub fn build(prims: &mut PrimSet) -> (Vec<BvhNode>, Vec<u32>) {
     let total: usize = PrimKind::BVH_KINDS.iter().map(|&k| prims.len(k)).sum();
     if total == 0 {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     }
     let parallel =
         total > PARALLEL_REFS && crate::parallel::parallel() && rayon::current_num_threads() > 1;
@@ -230,16 +233,20 @@ pub fn build(prims: &mut PrimSet) -> Vec<BvhNode> {
         serial_subtree(&mut refs, 0, root, 0, &mut nodes, &mut leaves);
     }
     // reorder the BVH kinds into leaf order: each kind's new array is its
-    // references' primitives in reference order, one gather (was a push per
-    // primitive, leaf by leaf, after a pass over a list of the leaves)
+    // references' primitives in reference order, one gather; the triangles only their
+    // indices (the collapse gathers the triangles straight into their blocks)
     use PrimKind::{Quadric, Sphere, Triangle};
-    prims.spheres = gather(&refs, Sphere, &prims.spheres, parallel);
-    prims.sphere_obj = gather(&refs, Sphere, &prims.sphere_obj, parallel);
-    prims.triangles = gather(&refs, Triangle, &prims.triangles, parallel);
-    prims.triangle_obj = gather(&refs, Triangle, &prims.triangle_obj, parallel);
-    prims.quadrics = gather(&refs, Quadric, &prims.quadrics, parallel);
-    prims.quadric_obj = gather(&refs, Quadric, &prims.quadric_obj, parallel);
-    nodes
+    fn by_kind<T: Copy + Send + Sync>(refs: &[Ref], k: PrimKind, v: &[T], par: bool) -> Vec<T> {
+        gather(refs, k, v.len(), |i| v[i], par)
+    }
+    prims.spheres = by_kind(&refs, Sphere, &prims.spheres, parallel);
+    prims.sphere_obj = by_kind(&refs, Sphere, &prims.sphere_obj, parallel);
+    let n = prims.triangle_obj.len();
+    let order = gather(&refs, Triangle, n, |i| i as u32, parallel);
+    prims.triangle_obj = by_kind(&refs, Triangle, &prims.triangle_obj, parallel);
+    prims.quadrics = by_kind(&refs, Quadric, &prims.quadrics, parallel);
+    prims.quadric_obj = by_kind(&refs, Quadric, &prims.quadric_obj, parallel);
+    (nodes, order)
 }
 
 /// Builds with more references than this use the worker threads.
@@ -788,25 +795,27 @@ fn partition(part: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Bounds, B
     (i, lb, rb)
 }
 
-/// The primitives of `kind` in the order of their references.
+/// The primitives of `kind` in the order of their references: `get(i)` for the
+/// reference to primitive `i` of the `n` of that kind.
 fn gather<T: Copy + Send + Sync>(
     refs: &[Ref],
     kind: PrimKind,
-    from: &[T],
+    n: usize,
+    get: impl Fn(usize) -> T + Send + Sync,
     parallel: bool,
 ) -> Vec<T> {
-    let mut v = huge_vec(from.len());
-    if from.len() == refs.len() && parallel {
-        v.par_extend(refs.par_iter().map(|r| from[r.index()]));
-    } else if from.len() == refs.len() {
+    let mut v = huge_vec(n);
+    if n == refs.len() && parallel {
+        v.par_extend(refs.par_iter().map(|r| get(r.index())));
+    } else if n == refs.len() {
         // one kind only
-        v.extend(refs.iter().map(|r| from[r.index()]));
+        v.extend(refs.iter().map(|r| get(r.index())));
     } else {
         let k = kind as u32;
         v.extend(
             refs.iter()
                 .filter(|r| r.kind() == k)
-                .map(|r| from[r.index()]),
+                .map(|r| get(r.index())),
         );
     }
     v
@@ -881,10 +890,11 @@ mod tests {
             .num_threads(2)
             .build()
             .unwrap();
-        let a = one.install(|| build(&mut serial));
-        let b = two.install(|| build(&mut parallel));
+        let (a, order_a) = one.install(|| build(&mut serial));
+        let (b, order_b) = two.install(|| build(&mut parallel));
         assert_eq!(without_pad(&a), without_pad(&b));
-        assert_eq!(serial.triangles, parallel.triangles);
+        assert_eq!(order_a, order_b);
+        assert_eq!(serial.triangle_obj, parallel.triangle_obj);
         assert_eq!(serial.spheres, parallel.spheres);
         assert_eq!(serial.sphere_obj, parallel.sphere_obj);
         // and it is a tree with more than one parallel task

@@ -77,10 +77,11 @@ pub struct Bvh {
 
 impl Bvh {
     /// Builds the tree (binned SAH) over the bounded primitives of `prims`,
-    /// reordering them into leaf order. Validated in debug builds.
+    /// reordering them into leaf order (the triangles into blocks of eight,
+    /// `PrimSet::blocks`). Validated in debug builds.
     pub fn build(mut prims: PrimSet) -> Bvh {
-        let nodes = build::build(&mut prims);
-        let wide = wide::WideBvh::collapse(&nodes, &prims);
+        let (nodes, order) = build::build(&mut prims);
+        let wide = wide::WideBvh::collapse(&nodes, &mut prims, order);
         let bvh = Bvh { nodes, prims, wide };
         #[cfg(debug_assertions)]
         if let Err(e) = bvh.validate() {

@@ -55,7 +55,8 @@ struct Subtree {
 }
 
 /// Starts loading what `node` leads to: its children (one cache line, see `build`)
-/// or, for a leaf, its first triangle. No branch: the address is picked, and a
+/// or, for a leaf, the block of its first triangle (by `PrimSet::block_at`, which
+/// names that block or one just before it). No branch: the address is picked, and a
 /// prefetch of an address outside the arrays (a leaf of another kind) is harmless.
 ///
 /// Node loads are the packet walk's critical path: the tree of torus100k (3.5 MB)
@@ -66,7 +67,8 @@ fn prefetch(bvh: &Bvh, node: &BvhNode) {
     {
         let i = node.first as usize;
         let p: *const i8 = if node.is_leaf() {
-            bvh.prims.triangles.as_ptr().wrapping_add(i).cast()
+            let at = bvh.prims.block_at.get(i >> 3).copied().unwrap_or(0);
+            bvh.prims.blocks.as_ptr().wrapping_add(at as usize).cast()
         } else {
             bvh.nodes.as_ptr().wrapping_add(i).cast()
         };

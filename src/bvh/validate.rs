@@ -13,8 +13,9 @@ use crate::math::aabb::Aabb;
 impl Bvh {
     /// Every BVH primitive referenced by exactly one leaf; children inside their
     /// parent; leaves of one kind with in-range primitives inside their box; the tree
-    /// within the traversal stack; every object index in range of the arrays; and the
-    /// same of the wide tree ([`Bvh::validate_wide`]).
+    /// within the traversal stack; every object index in range of the arrays; the
+    /// triangles' blocks ([`triangle_store`]); and the same of the wide tree
+    /// ([`Bvh::validate_wide`]).
     pub fn validate(&self) -> Result<(), String> {
         self.validate_binary()?;
         self.validate_wide()
@@ -24,12 +25,12 @@ impl Bvh {
     fn validate_binary(&self) -> Result<(), String> {
         let p = &self.prims;
         if p.spheres.len() != p.sphere_obj.len()
-            || p.triangles.len() != p.triangle_obj.len()
             || p.quadrics.len() != p.quadric_obj.len()
             || p.free_quadrics.len() != p.free_quadric_obj.len()
         {
             return Err("primitive and object arrays differ in length".into());
         }
+        triangle_store(p)?;
         let total: usize = PrimKind::BVH_KINDS.iter().map(|&k| p.len(k)).sum();
         if self.nodes.is_empty() {
             return if total == 0 {
@@ -70,6 +71,60 @@ impl Bvh {
             None => Ok(()),
         }
     }
+}
+
+/// The triangles of a built set: none left in `triangles`; `blocks` one after another
+/// from triangle 0 (1 to 8 each, every `first` the last block's end) over one triangle
+/// per object index; every padding lane a point (three equal corners: never hit); and
+/// `block_at[k]` a block holding triangle 8·k.
+fn triangle_store(p: &PrimSet) -> Result<(), String> {
+    let n = p.triangle_obj.len();
+    if !p.triangles.is_empty() {
+        return Err(format!(
+            "{} triangles listed beside their blocks",
+            p.triangles.len()
+        ));
+    }
+    let mut next = 0usize;
+    for (b, blk) in p.blocks.iter().enumerate() {
+        let (f, c) = (blk.first as usize, blk.count as usize);
+        if f != next || !(1..=8).contains(&c) {
+            return Err(format!(
+                "triangle block {b} holds triangles {f}+{c}, not from {next}"
+            ));
+        }
+        for l in c..8 {
+            let bits = blk.tri.lane(l).v.map(|v| v.to_array().map(f32::to_bits));
+            if bits[0] != bits[1] || bits[1] != bits[2] {
+                return Err(format!(
+                    "triangle block {b}: padding lane {l} is not a point"
+                ));
+            }
+        }
+        next += c;
+    }
+    if next != n {
+        return Err(format!(
+            "the triangle blocks hold {next} triangles, not {n}"
+        ));
+    }
+    if p.block_at.len() != n.div_ceil(8) {
+        return Err(format!(
+            "{} block indices for {n} triangles",
+            p.block_at.len()
+        ));
+    }
+    for (k, &b) in p.block_at.iter().enumerate() {
+        let holds = (p.blocks.get(b as usize))
+            .is_some_and(|blk| (blk.first..blk.first + blk.count).contains(&(8 * k as u32)));
+        if !holds {
+            return Err(format!(
+                "block_at[{k}] = {b}, not a block holding triangle {}",
+                8 * k
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// One mark per primitive of each BVH kind, none set.
@@ -136,27 +191,26 @@ impl Bvh {
     ///   slot is `WideNode::empty`'s (its box `Aabb::EMPTY` exactly, which never hits;
     ///   interior, child 0); a child node's boxes lie inside its slot's box;
     /// - a leaf slot names a kind of the tree; a triangle leaf of n triangles owns the
-    ///   ⌈n/8⌉ blocks from its child index, each reached once, whose lanes are
-    ///   `first`, `first + 1`, ... of `PrimSet::triangles` (in range), bit for bit, with
-    ///   padding lanes past `count`;
+    ///   ⌈n/8⌉ blocks of `PrimSet::blocks` from its child index, each reached once,
+    ///   holding triangles `first`, `first + 1`, ... (in range) of the slot's span;
     /// - `leaf_boxes` has one entry per block; a lane's leaf box lies in its slot's box
     ///   and holds its triangle's box; a padding lane's is empty; in a block of one
     ///   binary leaf (`one_leaf`) every lane's leaf box is the slot's;
     /// - a leaf of another kind holds in-range primitives inside its slot's box;
     /// - every primitive of the tree's kinds is reached exactly once;
     /// - the size switches (`prefetches`, `stream_steps`, `stream_any_hit_steps`) follow
-    ///   [`WideBvh::walked_bytes`](super::wide::WideBvh::walked_bytes).
+    ///   [`Bvh::walked_bytes`].
     pub fn validate_wide(&self) -> Result<(), String> {
         let (w, p) = (&self.wide, &self.prims);
-        if w.blocks.len() != w.leaf_boxes.len() {
+        if p.blocks.len() != w.leaf_boxes.len() {
             return Err(format!(
                 "wide tree: {} triangle blocks but {} leaf-box entries",
-                w.blocks.len(),
+                p.blocks.len(),
                 w.leaf_boxes.len()
             ));
         }
         if self.nodes.is_empty() {
-            return if w.nodes.is_empty() && w.blocks.is_empty() {
+            return if w.nodes.is_empty() && p.blocks.is_empty() {
                 Ok(())
             } else {
                 Err("wide tree without a binary tree".into())
@@ -165,7 +219,7 @@ impl Bvh {
         if w.nodes.is_empty() {
             return Err("binary tree without a wide tree".into());
         }
-        let walked = w.walked_bytes();
+        let walked = self.walked_bytes();
         let switches = [
             ("prefetches", w.prefetches, walked > PREFETCH_FROM),
             ("stream_steps", w.stream_steps, walked >= STREAM_FROM),
@@ -184,7 +238,7 @@ impl Bvh {
         }
         let mut seen = marks(p);
         let mut node_seen = vec![false; w.nodes.len()];
-        let mut block_seen = vec![false; w.blocks.len()];
+        let mut block_seen = vec![false; p.blocks.len()];
         let mut stack = vec![(0usize, 1usize)];
         while let Some((i, depth)) = stack.pop() {
             if std::mem::replace(&mut node_seen[i], true) {
@@ -238,17 +292,17 @@ impl Bvh {
                 }
                 let b0 = r.child as usize;
                 let nb = count.div_ceil(8);
-                if b0 + nb > w.blocks.len() {
+                if b0 + nb > p.blocks.len() {
                     return Err(format!("{at}: blocks {b0}+{nb} out of bounds"));
                 }
-                let first = w.blocks[b0].first as usize;
+                let first = p.blocks[b0].first as usize;
                 for q in 0..nb {
                     let bi = b0 + q;
                     if std::mem::replace(&mut block_seen[bi], true) {
                         return Err(format!("{at}: block {bi} reached twice"));
                     }
                     let want = (first + 8 * q, (count - 8 * q).min(8));
-                    let (blk, boxes) = (&w.blocks[bi], &w.leaf_boxes[bi]);
+                    let (blk, boxes) = (&p.blocks[bi], &w.leaf_boxes[bi]);
                     triangle_block(p, blk, boxes, want, &b, &mut seen[k])
                         .map_err(|e| format!("{at}: block {bi}{e}"))?;
                 }
@@ -268,8 +322,7 @@ impl Bvh {
 }
 
 /// A triangle block of a leaf slot whose box is `b`: it holds triangles `want`
-/// (first, count) of `p`, in range, bit for bit, its padding lanes past them; each
-/// lane's leaf box (`boxes`) lies between its triangle's box and `b`, is `b` itself in
+/// (first, count) of `p`, in range; each lane's leaf box (`boxes`) lies between its triangle's box and `b`, is `b` itself in
 /// a block of one binary leaf, and is empty in a padding lane; each triangle marked in
 /// `seen` for the first time. The error says what, after the block's name.
 fn triangle_block(
@@ -281,7 +334,7 @@ fn triangle_block(
     seen: &mut [u8],
 ) -> Result<(), String> {
     let (f, n) = (blk.first as usize, blk.count as usize);
-    if (f, n) != want || f + n > p.triangles.len() {
+    if (f, n) != want || f + n > p.len(PrimKind::Triangle) {
         return Err(format!(" holds triangles {f}+{n}, not the slot's"));
     }
     for l in 0..8 {
@@ -291,11 +344,6 @@ fn triangle_block(
                 return Err(format!(": padding lane {l} has a box"));
             }
             continue;
-        }
-        let v = &p.triangles[f + l].v;
-        let lane = |c: usize, a: usize| blk.tri.v[c][a].as_array()[l].to_bits();
-        if (0..3).any(|c| (0..3).any(|a| lane(c, a) != v[c][a].to_bits())) {
-            return Err(format!(" lane {l}: not triangle {}", f + l));
         }
         if !lb.contains(&p.bounds(PrimKind::Triangle, f + l)) || !b.contains(&lb) {
             return Err(format!(
@@ -319,7 +367,7 @@ mod tests {
     use super::*;
     use crate::bvh::bench::torus;
     use crate::bvh::slot::Slot;
-    use crate::bvh::wide::{WideBvh, WideNode};
+    use crate::bvh::wide::WideNode;
     use crate::geometry::PrimSet;
 
     /// Lane `j` of `v` set to `x`.
@@ -329,19 +377,17 @@ mod tests {
         *v = f32x8::new(a);
     }
 
-    type Breaker = Box<dyn Fn(&mut WideBvh)>;
+    type Breaker = Box<dyn Fn(&mut Bvh)>;
 
     #[test]
     fn a_built_tree_passes_and_each_broken_wide_invariant_is_named() {
         let good = Bvh::build(PrimSet::from_triangles(torus(40, 24)));
         assert_eq!(good.validate(), Ok(()));
-        let w = &good.wide;
-        let merged = w
-            .blocks
-            .iter()
+        let (w, blocks) = (&good.wide, &good.prims.blocks);
+        let merged = (blocks.iter())
             .position(|b| !b.one_leaf)
             .expect("a merged block");
-        let short = (w.blocks.iter())
+        let short = (blocks.iter())
             .position(|b| b.count < 8 && b.count > 1)
             .expect("a block with padding lanes");
         // a node with two interior slots, one with an empty slot, one with a leaf
@@ -370,19 +416,22 @@ mod tests {
         let cases: Vec<(&str, Breaker)> = vec![
             (
                 "leaf-box entries",
-                Box::new(|w| {
-                    w.leaf_boxes.pop();
+                Box::new(|t| {
+                    t.wide.leaf_boxes.pop();
                 }),
             ),
-            ("prefetches", Box::new(|w| w.prefetches = !w.prefetches)),
+            (
+                "prefetches",
+                Box::new(|t| t.wide.prefetches = !t.wide.prefetches),
+            ),
             (
                 "stream_steps",
-                Box::new(|w| w.stream_steps = !w.stream_steps),
+                Box::new(|t| t.wide.stream_steps = !t.wide.stream_steps),
             ),
             (
                 "slot 1 filled after an empty one",
-                Box::new(|w| {
-                    let n = &mut w.nodes[0];
+                Box::new(|t| {
+                    let n = &mut t.wide.nodes[0];
                     for (k, v) in n.bounds.iter_mut().enumerate() {
                         let x = if k % 2 == 0 {
                             f32::INFINITY
@@ -396,17 +445,17 @@ mod tests {
             ),
             (
                 "names a child",
-                Box::new(move |w| w.nodes[ie].child[se] = 1),
+                Box::new(move |t| t.wide.nodes[ie].child[se] = 1),
             ),
             (
                 "out of order",
-                Box::new(move |w| w.nodes[i2].child[a] = i2 as u32),
+                Box::new(move |t| t.wide.nodes[i2].child[a] = i2 as u32),
             ),
             (
                 "reached twice",
-                Box::new(move |w| {
+                Box::new(move |t| {
                     // slot b a copy of slot a: its box and its child
-                    let n = &mut w.nodes[i2];
+                    let n = &mut t.wide.nodes[i2];
                     for v in n.bounds.iter_mut() {
                         let x = v.to_array()[a];
                         set_lane(v, b, x);
@@ -414,49 +463,53 @@ mod tests {
                     n.child[b] = n.child[a];
                 }),
             ),
-            ("not reached", Box::new(|w| w.nodes.push(WideNode::empty()))),
+            (
+                "not reached",
+                Box::new(|t| t.wide.nodes.push(WideNode::empty())),
+            ),
             (
                 "outside its box",
-                Box::new(move |w| {
+                Box::new(move |t| {
                     // slot a's box shrunk to its high x face
-                    let hi = w.nodes[i2].bounds[1].to_array()[a];
-                    set_lane(&mut w.nodes[i2].bounds[0], a, hi);
+                    let hi = t.wide.nodes[i2].bounds[1].to_array()[a];
+                    set_lane(&mut t.wide.nodes[i2].bounds[0], a, hi);
                 }),
             ),
             (
                 "no kind of the tree",
-                Box::new(move |w| {
-                    let n = w.nodes[il].slot[sl].count();
-                    w.nodes[il].slot[sl] = Slot::leaf(PrimKind::Floor, n);
+                Box::new(move |t| {
+                    let n = t.wide.nodes[il].slot[sl].count();
+                    t.wide.nodes[il].slot[sl] = Slot::leaf(PrimKind::Floor, n);
                 }),
             ),
             (
                 "out of bounds",
-                Box::new(move |w| w.nodes[il].child[sl] = w.blocks.len() as u32),
+                Box::new(move |t| t.wide.nodes[il].child[sl] = t.prims.blocks.len() as u32),
             ),
             (
-                "not triangle",
-                Box::new(|w| {
-                    let x = w.blocks[0].tri.v[0][0].to_array()[0];
-                    set_lane(&mut w.blocks[0].tri.v[0][0], 0, x + 1.0);
+                "is not a point",
+                Box::new(move |t| {
+                    let v = &mut t.prims.blocks[short].tri.v[1][0];
+                    let x = v.to_array()[7];
+                    set_lane(v, 7, x + 1.0);
                 }),
             ),
             (
                 "holds triangles",
-                Box::new(move |w| w.blocks[short].count -= 1),
+                Box::new(move |t| t.prims.blocks[short].first += 1),
             ),
             (
                 "not between its triangle's and its slot's",
-                Box::new(move |w| {
+                Box::new(move |t| {
                     // lane 0's box shrunk to its high x face
-                    let hi = w.leaf_boxes[merged][1].to_array()[0];
-                    set_lane(&mut w.leaf_boxes[merged][0], 0, hi);
+                    let hi = t.wide.leaf_boxes[merged][1].to_array()[0];
+                    set_lane(&mut t.wide.leaf_boxes[merged][0], 0, hi);
                 }),
             ),
             (
                 "padding lane",
-                Box::new(move |w| {
-                    let b = &mut w.leaf_boxes[short];
+                Box::new(move |t| {
+                    let b = &mut t.wide.leaf_boxes[short];
                     for v in b.iter_mut() {
                         let x = v.to_array()[0];
                         set_lane(v, 7, x);
@@ -465,12 +518,12 @@ mod tests {
             ),
             (
                 "one binary leaf",
-                Box::new(move |w| w.blocks[merged].one_leaf = true),
+                Box::new(move |t| t.prims.blocks[merged].one_leaf = true),
             ),
         ];
         for (want, break_it) in cases {
             let mut bvh = good.clone();
-            break_it(&mut bvh.wide);
+            break_it(&mut bvh);
             let e = bvh.validate().expect_err(want);
             assert!(e.contains(want), "expected {want:?}, got {e:?}");
         }

@@ -258,8 +258,15 @@ pub const BOUNDS_LIMIT: f32 = 17_592_186_044_416.0;
 pub struct PrimSet {
     pub spheres: Vec<sphere::Sphere32>,
     pub sphere_obj: Vec<u32>,
+    /// The triangles as the scene gives them, until a BVH build packs them into
+    /// `blocks` and empties this (reach them through [`PrimSet::triangle`]).
     pub triangles: Vec<triangle::Triangle32>,
     pub triangle_obj: Vec<u32>,
+    /// After a BVH build, every triangle, in leaf order, eight to a block
+    /// ([`triangle::TriBlock`]): the wide tree's leaves, and the one copy kept.
+    pub blocks: Vec<triangle::TriBlock>,
+    /// `block_at[k]`: the block holding triangle 8·k ([`PrimSet::triangle`]'s lookup).
+    pub block_at: Vec<u32>,
     pub quadrics: Vec<quadric::Quadric32>,
     pub quadric_obj: Vec<u32>,
     pub free_quadrics: Vec<quadric::Quadric32>,
@@ -417,7 +424,7 @@ impl PrimSet {
             (self.curved.binary_search_by_key(&obj, |c| c.0).ok()).map(|k| &self.curved[k].1);
         let (t_obj, t_floor) = match (kind, curved) {
             (PrimKind::Triangle, _) => (
-                self.triangles[i].plane_t_f64(o, d),
+                self.triangle(i).plane_t_f64(o, d),
                 (floor_z as f64 - o.z) / d.z,
             ),
             (_, Some(Shape::Sphere { center, radius })) => (
@@ -452,6 +459,52 @@ impl PrimSet {
         self.triangle_obj.push(id);
     }
 
+    /// Triangle `i`: after a BVH build, a lane of the block holding it (the block
+    /// [`PrimSet::block_at`] names, or one of the few after it); before, `triangles[i]`.
+    #[inline]
+    pub fn triangle(&self, i: usize) -> triangle::Triangle32 {
+        if self.blocks.is_empty() {
+            return self.triangles[i];
+        }
+        let b = &self.blocks[self.block_of(i)];
+        b.tri.lane(i - b.first as usize)
+    }
+
+    /// The block holding triangle `i` of a built set.
+    #[inline]
+    pub fn block_of(&self, i: usize) -> usize {
+        let mut b = self.block_at[i >> 3] as usize;
+        while i >= (self.blocks[b].first + self.blocks[b].count) as usize {
+            b += 1;
+        }
+        b
+    }
+
+    /// Every triangle with its index, in index order, built or not.
+    pub fn each_triangle(&self) -> impl Iterator<Item = (usize, triangle::Triangle32)> + '_ {
+        let listed = self.triangles.iter().copied().enumerate();
+        let packed = (self.blocks.iter()).flat_map(|b| {
+            (0..b.count as usize).map(move |l| (b.first as usize + l, b.tri.lane(l)))
+        });
+        listed.chain(packed)
+    }
+
+    /// Makes `blocks` (every triangle, in index order: each block's `first` the one
+    /// before's `first + count`, from 0) the store of the triangles, in place of
+    /// `triangles`, and indexes them for [`PrimSet::triangle`].
+    pub fn pack_triangles(&mut self, blocks: Vec<triangle::TriBlock>) {
+        let mut at = vec![0u32; self.triangle_obj.len().div_ceil(8)];
+        for (b, blk) in blocks.iter().enumerate() {
+            let (f, end) = (blk.first as usize, (blk.first + blk.count) as usize);
+            for m in (f.next_multiple_of(8)..end).step_by(8) {
+                at[m / 8] = b as u32;
+            }
+        }
+        self.block_at = at;
+        self.blocks = blocks;
+        self.triangles = Vec::new();
+    }
+
     /// A triangle mesh on its own (object 0), no floor: the benchmark's input.
     pub fn from_triangles(tris: Vec<triangle::Triangle32>) -> PrimSet {
         let n = tris.len();
@@ -466,7 +519,7 @@ impl PrimSet {
     pub fn len(&self, kind: PrimKind) -> usize {
         match kind {
             PrimKind::Sphere => self.spheres.len(),
-            PrimKind::Triangle => self.triangles.len(),
+            PrimKind::Triangle => self.triangle_obj.len(),
             PrimKind::Quadric => self.quadrics.len(),
             PrimKind::FreeQuadric => self.free_quadrics.len(),
             PrimKind::Floor => self.floor.is_some() as usize,
@@ -478,7 +531,7 @@ impl PrimSet {
     pub fn bounds(&self, kind: PrimKind, i: usize) -> Aabb {
         let b = match kind {
             PrimKind::Sphere => self.spheres[i].bounds(),
-            PrimKind::Triangle => self.triangles[i].bounds(),
+            PrimKind::Triangle => self.triangle(i).bounds(),
             PrimKind::Quadric => self.quadrics[i].bounds().expect("bounded quadric"),
             PrimKind::FreeQuadric | PrimKind::Floor => unreachable!("not in the BVH"),
         };
@@ -624,7 +677,7 @@ impl PrimSet {
                     self.record_x8(hit, m, t, zero, code);
                 }
                 PrimKind::Triangle => {
-                    let (m, t, u, v) = T::intersect_x8(&self.triangles[i], r, active, hit.t);
+                    let (m, t, u, v) = T::intersect_x8(&self.triangle(i), r, active, hit.t);
                     self.record_x8(hit, m, t, (u, v), code);
                 }
                 PrimKind::Quadric => {
@@ -762,7 +815,7 @@ impl PrimSet {
         for i in first..first + count {
             let m = match kind {
                 PrimKind::Sphere => self.spheres[i].occluded_x8(r, left, t_max),
-                PrimKind::Triangle => T::occluded_x8(&self.triangles[i], r, left, t_max),
+                PrimKind::Triangle => T::occluded_x8(&self.triangle(i), r, left, t_max),
                 PrimKind::Quadric => self.quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::FreeQuadric => self.free_quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::Floor => match &self.floor {
@@ -797,7 +850,7 @@ impl PrimSet {
                     }
                 }
                 PrimKind::Triangle => {
-                    if let Some((t, u, v)) = T::intersect_1(&self.triangles[i], r, hit.t) {
+                    if let Some((t, u, v)) = T::intersect_1(&self.triangle(i), r, hit.t) {
                         self.record_1(hit, t, u, v, code);
                     }
                 }
@@ -856,7 +909,7 @@ impl PrimSet {
     ) -> bool {
         (first..first + count).any(|i| match kind {
             PrimKind::Sphere => self.spheres[i].occluded_1(r, t_max),
-            PrimKind::Triangle => T::occluded_1(&self.triangles[i], r, t_max),
+            PrimKind::Triangle => T::occluded_1(&self.triangle(i), r, t_max),
             PrimKind::Quadric => self.quadrics[i].occluded_1(r, t_max),
             PrimKind::FreeQuadric => self.free_quadrics[i].occluded_1(r, t_max),
             PrimKind::Floor => self.floor.is_some_and(|f| f.occluded_1(r, t_max)),
@@ -877,7 +930,7 @@ impl PrimSet {
         let (kind, i) = split_code(code)?;
         Some(match kind {
             PrimKind::Sphere => self.spheres[i].surface_x8(r, t),
-            PrimKind::Triangle => self.triangles[i].surface_x8(u, v),
+            PrimKind::Triangle => self.triangle(i).surface_x8(u, v),
             PrimKind::Quadric => self.quadrics[i].surface_x8(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_x8(r, t),
             PrimKind::Floor => return None,
@@ -889,7 +942,7 @@ impl PrimSet {
         let (kind, i) = hit_code(code);
         match kind {
             PrimKind::Sphere => self.spheres[i].surface_1(r, t),
-            PrimKind::Triangle => self.triangles[i].surface_1(u, v),
+            PrimKind::Triangle => self.triangle(i).surface_1(u, v),
             PrimKind::Quadric => self.quadrics[i].surface_1(r, t),
             PrimKind::FreeQuadric => self.free_quadrics[i].surface_1(r, t),
             PrimKind::Floor => self.floor.expect("floor hit").surface_1(r, t),

@@ -431,6 +431,32 @@ impl TriRay8 {
     }
 }
 
+/// Up to eight triangles of one leaf of the fast path's trees, SoA: after a BVH build,
+/// the only store of a [`PrimSet`](super::PrimSet)'s triangles, in leaf order (lane i is
+/// triangle `first + i`; lanes >= `count` are padding that never hits; the blocks
+/// follow one another, each `first` the last one's `first + count`). 320 B = five
+/// cache lines. Each lane's binary leaf box is kept beside it, in the wide tree's
+/// `leaf_boxes`.
+///
+/// A lane's hit counts only when the ray also passes its binary leaf's box: then a
+/// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
+/// monotone under box containment, so passing the leaf's box implies passing every
+/// ancestor's), even for a ray lying in a box face with a ±0 direction component. In a
+/// block of one binary leaf (`one_leaf`) every lane's leaf box is the slot's, which a
+/// single ray has already passed.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct TriBlock {
+    pub tri: Triangle8,
+    pub first: u32,
+    pub count: u32,
+    /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
+    /// walks skip the lane boxes.
+    pub one_leaf: bool,
+}
+
+const _: () = assert!(std::mem::size_of::<TriBlock>() == 320);
+
 /// Eight triangles as structure of arrays, `v[vertex][axis]`, one triangle per lane.
 /// 288 B. Unused lanes repeat one point three times: their edge functions are exactly
 /// 0 (x·y − y·x), so det = 0 and they are never hit (or NaN on overflow: no hit either).
@@ -440,6 +466,18 @@ pub struct Triangle8 {
 }
 
 impl Triangle8 {
+    /// Triangle `j` (lane `j` of each coordinate).
+    #[inline]
+    pub fn lane(&self, j: usize) -> Triangle32 {
+        let c = |i: usize| {
+            let p = &self.v[i];
+            Vec3::new(p[0].as_array()[j], p[1].as_array()[j], p[2].as_array()[j])
+        };
+        Triangle32 {
+            v: [c(0), c(1), c(2)],
+        }
+    }
+
     /// The corners of triangle `j`, each splatted (one broadcast from memory each).
     #[inline(always)]
     pub fn splat_lanes<L: simd::Lanes>(&self, j: usize) -> [[L; 3]; 3] {

@@ -97,7 +97,7 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
     for kind in PrimKind::BVH_KINDS {
         if kind == PrimKind::Triangle {
             // most scenes' bulk: a loop of their own, without the kind's dispatch
-            for (i, t) in prims.triangles.iter().enumerate() {
+            for (i, t) in prims.each_triangle() {
                 scan.visit(kind, i, t.bounds());
             }
         } else {

@@ -12,12 +12,13 @@ use wide::f32x8;
 
 use super::{
     MERGE_MAX, PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, TriBlock, WideBvh, WideNode,
+    walked_bytes,
 };
 use crate::bvh::STACK_SIZE;
 use crate::bvh::memory::{huge_vec, prefetch_lines};
 use crate::bvh::node::BvhNode;
 use crate::bvh::slot::Slot;
-use crate::geometry::triangle::Triangle8;
+use crate::geometry::triangle::{Triangle8, Triangle32};
 use crate::geometry::{PrimKind, PrimSet};
 
 /// Subtree summary of a binary node, 8 B: its primitives are `first..first + count` of
@@ -157,22 +158,29 @@ fn wide_slots(nodes: &[BvhNode], plan: &[[u8; 8]], x: u32) -> ([u32; 8], usize) 
     out
 }
 
-/// A triangle leaf slot waiting for its blocks: its binary node and primitive span.
+/// A triangle leaf slot waiting for its blocks: its binary node, primitive span, and
+/// the wide node and slot that name its first block.
 #[derive(Clone, Copy)]
 struct TriSlot {
     node: u32,
     first: u32,
     count: u32,
+    wide: u32,
+    slot: u32,
 }
 
 impl WideBvh {
-    /// Collapses the binary tree `nodes` over `prims` (in leaf order) into the wide tree.
+    /// Collapses the binary tree `nodes` over `prims` (in leaf order, but for the
+    /// triangles, whose leaf order is `order`: [`build`](crate::bvh::build::build)) into
+    /// the wide tree, and packs the triangles into their blocks
+    /// ([`PrimSet::pack_triangles`]), the one copy of them the trees keep.
     ///
     /// Four passes: subtree spans bottom-up (one sweep over the binary nodes); the
     /// [`plan`] (one walk in post order); the wide nodes top-down by the plan, which
-    /// counts the triangle blocks; the blocks, written once into an array of exactly that
-    /// size (no growth, no copy).
-    pub fn collapse(nodes: &[BvhNode], prims: &PrimSet) -> WideBvh {
+    /// counts the triangle blocks; the blocks in leaf order, written once into an array
+    /// of exactly that size (no growth, no copy), each triangle read once from
+    /// `prims.triangles`.
+    pub fn collapse(nodes: &[BvhNode], prims: &mut PrimSet, order: Vec<u32>) -> WideBvh {
         let mut w = WideBvh::default();
         if nodes.is_empty() {
             return w;
@@ -254,14 +262,16 @@ impl WideBvh {
                     let leaf = s.slot.expect("a leaf slot is one run of one kind");
                     node.slot[slot] = leaf;
                     node.child[slot] = if leaf.holds(PrimKind::Triangle) {
+                        // its first block once the slots are in leaf order, below
                         tri_slots.push(TriSlot {
                             node: k,
                             first: s.first,
                             count: s.count(),
+                            wide: wi,
+                            slot: slot as u32,
                         });
-                        let b0 = n_blocks;
                         n_blocks += blocks(leaf);
-                        b0
+                        0
                     } else {
                         s.first
                     };
@@ -272,18 +282,23 @@ impl WideBvh {
         }
         drop(span);
         drop(plan);
-        w.blocks = huge_vec(n_blocks as usize);
+        // the blocks in leaf order: a triangle's block then follows from its index
+        // (`PrimSet::triangle`), and the slots' blocks are written one after another
+        tri_slots.sort_unstable_by_key(|t| t.first);
+        let mut b0 = 0;
+        for t in &tri_slots {
+            w.nodes[t.wide as usize].child[t.slot as usize] = b0;
+            b0 += t.count.div_ceil(8);
+        }
+        let mut blocks = huge_vec(n_blocks as usize);
         w.leaf_boxes = huge_vec(n_blocks as usize);
         for (i, &t) in tri_slots.iter().enumerate() {
             // a few slots ahead: their binary node (its subtree's boxes) and triangles
             if let Some(a) = tri_slots.get(i + 4) {
                 prefetch_lines(&nodes[a.node as usize]);
                 let (f, c) = (a.first as usize, a.count as usize);
-                if let Some(tris) = prims.triangles.get(f..f + c) {
-                    // every cache line of them (a line holds at least one whole triangle
-                    // or the start of one)
-                    let per_line = (64 / std::mem::size_of_val(&tris[0])).max(1);
-                    for t in tris.iter().step_by(per_line) {
+                for &k in order.get(f..f + c).unwrap_or_default() {
+                    if let Some(t) = prims.triangles.get(k as usize) {
                         prefetch_lines(t);
                     }
                 }
@@ -302,19 +317,30 @@ impl WideBvh {
                     }
                 }
             }
-            w.push_blocks(nodes, prims, t);
+            w.push_blocks(nodes, prims, &order, t, &mut blocks);
         }
-        debug_assert_eq!(w.blocks.len(), n_blocks as usize);
+        debug_assert_eq!(blocks.len(), n_blocks as usize);
         debug_assert_eq!(w.leaf_boxes.len(), n_blocks as usize);
-        w.prefetches = w.walked_bytes() > PREFETCH_FROM;
-        w.stream_steps = w.walked_bytes() >= STREAM_FROM;
-        w.stream_any_hit_steps = w.walked_bytes() >= STREAM_ANY_HIT_FROM;
+        drop(order);
+        prims.pack_triangles(blocks);
+        let walked = walked_bytes(&w.nodes, &prims.blocks);
+        w.prefetches = walked > PREFETCH_FROM;
+        w.stream_steps = walked >= STREAM_FROM;
+        w.stream_any_hit_steps = walked >= STREAM_ANY_HIT_FROM;
         w
     }
 
-    /// Packs the triangles of leaf slot `t` into blocks of 8, and each lane's box of the
-    /// binary leaf its triangle came from into `leaf_boxes`.
-    fn push_blocks(&mut self, nodes: &[BvhNode], prims: &PrimSet, t: TriSlot) {
+    /// Packs the triangles of leaf slot `t` (`order` names them in `prims.triangles`)
+    /// into blocks of 8 on `blocks`, and each lane's box of the binary leaf its triangle
+    /// came from into `leaf_boxes`.
+    fn push_blocks(
+        &mut self,
+        nodes: &[BvhNode],
+        prims: &PrimSet,
+        order: &[u32],
+        t: TriSlot,
+        blocks: &mut Vec<TriBlock>,
+    ) {
         const EMPTY: [[f32; 8]; 6] = [
             [f32::INFINITY; 8],
             [f32::NEG_INFINITY; 8],
@@ -325,7 +351,6 @@ impl WideBvh {
         ];
         const MERGED_BLOCKS: usize = MERGE_MAX.div_ceil(8) as usize;
         let (first, count) = (t.first as usize, t.count as usize);
-        let tris = &prims.triangles[first..first + count];
         let root = &nodes[t.node as usize];
         let mut lanes = [EMPTY; MERGED_BLOCKS];
         if !root.is_leaf() {
@@ -355,7 +380,7 @@ impl WideBvh {
                 }
             }
         }
-        for (k, chunk) in tris.chunks(8).enumerate() {
+        for (k, chunk) in order[first..first + count].chunks(8).enumerate() {
             let bounds = if root.is_leaf() {
                 // one binary leaf: every lane has its box
                 let mut b = EMPTY;
@@ -367,8 +392,10 @@ impl WideBvh {
             } else {
                 lanes[k]
             };
-            self.blocks.push(TriBlock {
-                tri: Triangle8::new(chunk),
+            let tris: [Triangle32; 8] =
+                std::array::from_fn(|l| prims.triangles[chunk[l.min(chunk.len() - 1)] as usize]);
+            blocks.push(TriBlock {
+                tri: Triangle8::new(&tris[..chunk.len()]),
                 first: t.first + 8 * k as u32,
                 count: chunk.len() as u32,
                 one_leaf: root.is_leaf(),
@@ -540,8 +567,8 @@ mod tests {
             (6, 3, 2),
         ] {
             let mut p = prims(seed, n, spheres);
-            let nodes = build::build(&mut p);
-            let w = WideBvh::collapse(&nodes, &p);
+            let (nodes, order) = build::build(&mut p);
+            let w = WideBvh::collapse(&nodes, &mut p, order);
             let (got, least) = (wide_cost(&w), least_cost(&nodes));
             assert!(least.is_finite() && least > 0.0, "seed {seed}: {least}");
             assert!(

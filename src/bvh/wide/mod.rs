@@ -26,11 +26,11 @@ pub mod walk_x8;
 
 use wide::f32x8;
 
-use super::STACK_SIZE;
 use super::memory::prefetch_lines;
 use super::slot::{Slot, SlotRef};
+use super::{Bvh, STACK_SIZE};
 use crate::geometry::PrimKind;
-use crate::geometry::triangle::Triangle8;
+pub use crate::geometry::triangle::TriBlock;
 
 /// Largest binary subtree (in primitives of one kind) collapsed into one leaf.
 pub const MERGE_MAX: u32 = 16;
@@ -76,36 +76,11 @@ impl WideNode {
     }
 }
 
-/// Up to eight triangles of one leaf, SoA, with the index of the first in
-/// `PrimSet::triangles` (lane i is triangle `first + i`; lanes >= `count` are padding
-/// that never hits). 320 B = five cache lines. Each lane's binary leaf box is kept
-/// beside it, in [`WideBvh::leaf_boxes`].
-///
-/// A lane's hit counts only when the ray also passes its binary leaf's box: then a
-/// merged leaf reports exactly the triangles the binary walk reaches (the slab test is
-/// monotone under box containment, so passing the leaf's box implies passing every
-/// ancestor's), even for a ray lying in a box face with a ±0 direction component. In a
-/// block of one binary leaf (`one_leaf`) every lane's leaf box is the slot's, which a
-/// single ray has already passed.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-pub struct TriBlock {
-    pub tri: Triangle8,
-    pub first: u32,
-    pub count: u32,
-    /// All lanes come from one binary leaf, whose box is the slot's: the single-ray
-    /// walks skip the lane boxes.
-    pub one_leaf: bool,
-}
-
-const _: () = assert!(std::mem::size_of::<TriBlock>() == 320);
-
-/// The 8-wide tree over the same primitives as the binary one (it owns copies of the
-/// triangles in blocks; the primitive codes it reports index `PrimSet`).
+/// The 8-wide tree over the same primitives as the binary one; its triangle leaves
+/// name blocks of `PrimSet::blocks`, the primitive codes it reports index `PrimSet`.
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
     pub nodes: Vec<WideNode>,
-    pub blocks: Vec<TriBlock>,
     /// Per block (the same index), each lane's binary leaf box, in the layout of
     /// [`WideNode::bounds`] (padding lanes empty). Apart from the blocks: the frustum
     /// walks read them for every block they reach (which triangles some lane may
@@ -152,7 +127,7 @@ pub const STREAM_ANY_HIT_FROM: usize = 15 << 20;
 /// binary one (< [`STACK_SIZE`]), and a node leaves at most 7 entries on the stack.
 pub(super) const WIDE_STACK: usize = 7 * STACK_SIZE + 1;
 
-impl WideBvh {
+impl Bvh {
     /// Asks for a child's node or first triangle block (`boxes`: and its leaf boxes) to
     /// be brought into the cache: the slab test reads the box lines, then the child or
     /// triangle lines, each a miss of its own on incoherent rays without this. Without
@@ -167,8 +142,8 @@ impl WideBvh {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
             let c = r.child as usize;
             let interior = r.slot.is_interior();
-            let node = self.nodes.as_ptr().wrapping_add(c).cast::<i8>();
-            let block = self.blocks.as_ptr().wrapping_add(c).cast::<i8>();
+            let node = self.wide.nodes.as_ptr().wrapping_add(c).cast::<i8>();
+            let block = self.prims.blocks.as_ptr().wrapping_add(c).cast::<i8>();
             let p = if interior { node } else { block };
             // a node's four lines (the first again), a block's five
             let fifth = if interior { 0 } else { 256 };
@@ -185,25 +160,25 @@ impl WideBvh {
             return;
         }
         if r.slot.is_interior() {
-            if let Some(n) = self.nodes.get(r.child as usize) {
+            if let Some(n) = self.wide.nodes.get(r.child as usize) {
                 prefetch_lines(n);
             }
         } else if r.slot.holds(PrimKind::Triangle)
-            && let Some(b) = self.blocks.get(r.child as usize)
+            && let Some(b) = self.prims.blocks.get(r.child as usize)
         {
             prefetch_lines(b);
-            if boxes && let Some(lb) = self.leaf_boxes.get(r.child as usize) {
+            if boxes && let Some(lb) = self.wide.leaf_boxes.get(r.child as usize) {
                 prefetch_lines(lb);
             }
         }
     }
 
-    /// The single-ray closest-hit walk's [`WideBvh::prefetch`] of the children `bits` of
+    /// The single-ray closest-hit walk's [`Bvh::prefetch`] of the children `bits` of
     /// `node`, in a loop of its own: only in trees that need it ([`WideBvh::prefetches`]).
     /// (The other walks prefetch in their push pass.)
     #[inline(always)]
     pub(super) fn prefetch_children_1(&self, node: &WideNode, mut bits: u32) {
-        if self.prefetches {
+        if self.wide.prefetches {
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -215,9 +190,16 @@ impl WideBvh {
     /// Bytes of the arrays the single-ray walks read: the wide nodes and the triangle
     /// blocks (not their leaf boxes).
     pub fn walked_bytes(&self) -> usize {
-        std::mem::size_of_val(&self.nodes[..]) + std::mem::size_of_val(&self.blocks[..])
+        walked_bytes(&self.wide.nodes, &self.prims.blocks)
     }
+}
 
+/// [`Bvh::walked_bytes`] of these arrays.
+pub(super) fn walked_bytes(nodes: &[WideNode], blocks: &[TriBlock]) -> usize {
+    std::mem::size_of_val(nodes) + std::mem::size_of_val(blocks)
+}
+
+impl WideBvh {
     /// Depth of the deepest leaf slot (root node = 1); 0 when empty.
     pub fn depth(&self) -> usize {
         if self.nodes.is_empty() {
@@ -243,7 +225,7 @@ impl WideBvh {
     /// distance's bits, >= 0 so ordered as integers, then the slot; insertion sort, at
     /// most 8), and returns the nearest, to visit next. Shared by the single-ray and the
     /// frustum packet walks. `prefetch`: the tree (and whether with the blocks' leaf
-    /// boxes) whose [`WideBvh::prefetch`] each child gets as the pass meets it (the
+    /// boxes) whose [`Bvh::prefetch`] each child gets as the pass meets it (the
     /// frustum walks), or `None` (the single-ray walk prefetches its hit children in a
     /// loop of their own, before: folded in here it ran 0.98–0.99).
     #[inline(always)]
@@ -252,7 +234,7 @@ impl WideBvh {
         near: f32x8,
         first: usize,
         mut bits: u32,
-        prefetch: Option<(&WideBvh, bool)>,
+        prefetch: Option<(&Bvh, bool)>,
         stack: &mut super::slot::Stack<Pending, WIDE_STACK>,
     ) -> SlotRef {
         let nd = near.to_array();
@@ -313,14 +295,14 @@ impl WideBvh {
     /// surface, which it has left, and a blocker lies farther on (figures in
     /// benches/README.md: the order changes no answer, only how soon a walk ends).
     /// `prefetch`: the tree (and whether with the blocks' leaf boxes) whose
-    /// [`WideBvh::prefetch`] each pushed child gets in the same pass, or `None`.
+    /// [`Bvh::prefetch`] each pushed child gets in the same pass, or `None`.
     #[inline(always)]
     pub(super) fn push_any_hit(
         node: &WideNode,
         near: f32x8,
         mut bits: u32,
         leaves_last: bool,
-        prefetch: Option<(&WideBvh, bool)>,
+        prefetch: Option<(&Bvh, bool)>,
         stack: &mut super::slot::Stack<SlotRef, WIDE_STACK>,
     ) {
         let nd = near.to_array();

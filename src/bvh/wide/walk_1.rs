@@ -434,7 +434,7 @@ impl Bvh {
             steps.boxes += 1;
             let (m, near) = wr.boxes.test(&node.bounds, hit.t);
             let mut bits = m.bits();
-            w.prefetch_children_1(node, bits);
+            self.prefetch_children_1(node, bits);
             if bits != 0 {
                 let first = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
@@ -479,7 +479,10 @@ impl Bvh {
         let first = leaf.child as usize;
         let w = &self.wide;
         let end = first + count.div_ceil(8);
-        for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
+        for (b, leaf) in self.prims.blocks[first..end]
+            .iter()
+            .zip(&w.leaf_boxes[first..end])
+        {
             // the leaf boxes only for lanes that hit (`BoxRay::leaf_lanes`)
             let (m, t, u, v) = T::intersect_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, hit.t);
             if m.none() {
@@ -576,7 +579,7 @@ impl Bvh {
             steps.boxes += 1;
             let (m, near) = wr.boxes.test(&node.bounds, t_max);
             let bits = m.bits();
-            let prefetch = w.prefetches.then_some((w, false));
+            let prefetch = w.prefetches.then_some((self, false));
             WideBvh::push_any_hit(node, near, bits, true, prefetch, stack);
         } else if self.leaf_occluded_1::<T, KZ>(cur, wr, t_max, steps) {
             return Some(true);
@@ -600,7 +603,7 @@ impl Bvh {
         }
         let w = &self.wide;
         let end = first + count.div_ceil(8);
-        (w.blocks[first..end].iter())
+        (self.prims.blocks[first..end].iter())
             .zip(&w.leaf_boxes[first..end])
             .any(|(b, leaf)| {
                 let m = T::occluded_1x8::<KZ>(&b.tri, &wr.tris, Mask8::ALL, t_max);
@@ -682,9 +685,7 @@ mod tests {
         for r in rays {
             let boxes = BoxRay::new(r);
             let w = &bvh.wide;
-            for (b, leaf) in w
-                .blocks
-                .iter()
+            for (b, leaf) in (bvh.prims.blocks.iter())
                 .zip(&w.leaf_boxes)
                 .filter(|(b, _)| !b.one_leaf)
             {

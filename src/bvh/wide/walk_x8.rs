@@ -530,7 +530,7 @@ impl Bvh {
                     }
                     // two or more: nearest next, the others pushed farthest first, each
                     // prefetched as it is met (only here, where children are pushed)
-                    let prefetch = Some((w, true));
+                    let prefetch = Some((self, true));
                     cur = WideBvh::push_ordered(node, near, first, bits, prefetch, &mut stack);
                     continue 'walk;
                 }
@@ -596,7 +596,7 @@ impl Bvh {
                         cur = node.get(first);
                         continue 'walk;
                     }
-                    let prefetch = Some((w, true));
+                    let prefetch = Some((self, true));
                     cur = WideBvh::push_ordered(node, near, first, bits, prefetch, &mut stack);
                     continue 'walk;
                 }
@@ -656,7 +656,10 @@ impl Bvh {
         let (mut t_hi, mut dirty) = (t_hi, false);
         let w = &self.wide;
         let end = first + count.div_ceil(8);
-        for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
+        for (b, leaf) in self.prims.blocks[first..end]
+            .iter()
+            .zip(&w.leaf_boxes[first..end])
+        {
             if dirty {
                 (t_hi, dirty) = (max_in(P::hit_t(hit), act), false);
             }
@@ -760,7 +763,7 @@ impl Bvh {
                 if P::LEAVES_PER_LANE {
                     bits = entered_leaves(r, node, bits, left, t_max);
                 }
-                WideBvh::push_any_hit(node, near, bits, false, Some((w, true)), &mut stack);
+                WideBvh::push_any_hit(node, near, bits, false, Some((self, true)), &mut stack);
                 continue;
             }
             let (kind, count) = (cur.slot.kind(), cur.slot.count() as usize);
@@ -773,7 +776,10 @@ impl Bvh {
             } else {
                 let w = &self.wide;
                 let end = first + count.div_ceil(8);
-                for (b, leaf) in w.blocks[first..end].iter().zip(&w.leaf_boxes[first..end]) {
+                for (b, leaf) in self.prims.blocks[first..end]
+                    .iter()
+                    .zip(&w.leaf_boxes[first..end])
+                {
                     let mut bits = fr.block_candidates::<OCT>(b, leaf, t_hi);
                     while bits != 0 && left.any() {
                         let j = bits.trailing_zeros() as usize;

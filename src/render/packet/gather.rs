@@ -206,7 +206,7 @@ impl PacketRenderer {
             if *object.get_or_insert(of) != of {
                 return None;
             }
-            for (c, v) in corners.iter_mut().zip(prims.triangles[k].v) {
+            for (c, v) in corners.iter_mut().zip(prims.triangle(k).v) {
                 c[i] = v;
             }
         }
