@@ -42,13 +42,16 @@ pub struct RaySet {
 /// meshes are written with exact float32 values, so nothing is rounded); zero-area
 /// triangles are dropped, by the renderer's rule ([`mesh_triangles`]).
 pub fn load_mesh(path: &Path) -> Result<Vec<Triangle32>, ObjError> {
-    Ok(mesh_triangles(load_obj(path)?).0)
+    let prims = mesh_prims(load_obj(path)?);
+    Ok(prims.each_triangle().map(|(_, t)| t).collect())
 }
 
 /// The triangles of `mesh` in the renderer's f32 frame at the origin, through the
-/// renderer's own path ([`PrimSet::from_scene`] on a scene of this one mesh): the
-/// triangles it drops as degenerate are dropped here too; and how many it dropped.
-pub fn mesh_triangles(mesh: Mesh) -> (Vec<Triangle32>, usize) {
+/// renderer's own path ([`PrimSet::from_scene`] on a scene of this one mesh, whose
+/// `dropped` counts the triangles it drops as degenerate), without the floor: the
+/// vertices in f32 and each triangle's corners, as the renderer holds a mesh before its
+/// build.
+pub fn mesh_prims(mesh: Mesh) -> PrimSet {
     let scene = Scene {
         recursion_level: 1,
         pixels: 1,
@@ -66,8 +69,11 @@ pub fn mesh_triangles(mesh: Mesh) -> (Vec<Triangle32>, usize) {
         point_lights: Vec::new(),
         spot_lights: Vec::new(),
     };
-    let prims = PrimSet::from_scene(&scene, DVec3::ZERO);
-    (prims.triangles, prims.dropped)
+    // the mesh alone: no floor (which a scene always has)
+    PrimSet {
+        floor: None,
+        ..PrimSet::from_scene(&scene, DVec3::ZERO)
+    }
 }
 
 /// 1024 × 1024 pinhole camera at (0, 2.2, 2.6) looking at the origin, up +y, vertical
@@ -727,7 +733,8 @@ impl AccelBytes {
             wide_nodes: size_of_val(&bvh.wide.nodes[..]),
             wide_blocks: size_of_val(&p.blocks[..]) + size_of_val(&p.block_at[..]),
             leaf_boxes: size_of_val(&bvh.wide.leaf_boxes[..]),
-            prims: size_of_val(&p.triangles[..])
+            prims: size_of_val(&p.tri_corners[..])
+                + size_of_val(&p.tri_vertices[..])
                 + size_of_val(&p.triangle_obj[..])
                 + size_of_val(&p.spheres[..])
                 + size_of_val(&p.sphere_obj[..])
@@ -750,26 +757,25 @@ pub struct Built {
 }
 
 /// Builds the BVH best of 3 (as [`Bvh::build`], timed in its two parts: the binary
-/// tree, then its collapse), the first over `tris`, the others over what `reload`
+/// tree, then its collapse), the first over `prims`, the others over what `reload`
 /// gives (the same mesh read again, untimed). Each build drops the tree before it
 /// first and takes its triangles: no copy of the mesh or second tree stays beside the
 /// one being built (a copy of torus1m's triangles kept for the next build would add
-/// 36 MB to bench-trace's peak memory, the mesh itself 24 MB).
+/// 18 MB to bench-trace's peak memory, the mesh itself 24 MB).
 pub fn timed_build<E>(
-    tris: Vec<Triangle32>,
-    mut reload: impl FnMut() -> Result<Vec<Triangle32>, E>,
+    prims: PrimSet,
+    mut reload: impl FnMut() -> Result<PrimSet, E>,
 ) -> Result<Built, E> {
     let (mut build_ms, mut collapse_ms) = (f64::INFINITY, f64::INFINITY);
     let mut bvh = None;
-    let mut first = Some(tris);
+    let mut first = Some(prims);
     for _ in 0..3 {
         // the previous tree goes before this one's input is read and built
         drop(bvh.take());
-        let input = match first.take() {
-            Some(tris) => tris,
+        let mut prims = match first.take() {
+            Some(prims) => prims,
             None => reload()?,
         };
-        let mut prims = PrimSet::from_triangles(input);
         let start = Instant::now();
         let (nodes, order) = super::build::build(&mut prims);
         let built = Instant::now();
@@ -882,7 +888,8 @@ pub fn run(
             }
         };
         let (vertices, faces) = (obj.vertices().len(), obj.triangles().len());
-        let (tris, dropped) = mesh_triangles(obj);
+        let prims = mesh_prims(obj);
+        let dropped = prims.dropped;
         // the process's peak memory so far, for the log
         let peak = || peak_rss_mb().map_or_else(String::new, |mb| format!(", peak_rss_MB={mb:.1}"));
         let _ = writeln!(
@@ -894,8 +901,8 @@ pub fn run(
             bvh,
             build_ms,
             collapse_ms,
-        } = timed_build(tris, || {
-            Ok::<_, ObjError>(mesh_triangles(load_obj_cached(mesh, cache.as_deref())?.0).0)
+        } = timed_build(prims, || {
+            Ok::<_, ObjError>(mesh_prims(load_obj_cached(mesh, cache.as_deref())?.0))
         })?;
         let ntris = faces;
         let _ = writeln!(
@@ -1102,9 +1109,9 @@ mod tests {
     fn timed_builds_read_the_mesh_again_and_return_the_tree_of_one_build() {
         let tris = torus(30, 20);
         let mut reads = 0;
-        let built = timed_build(tris.clone(), || {
+        let built = timed_build(PrimSet::from_triangles(tris.clone()), || {
             reads += 1;
-            Ok::<_, &str>(tris.clone())
+            Ok::<_, &str>(PrimSet::from_triangles(tris.clone()))
         })
         .unwrap();
         assert_eq!(reads, 2);
@@ -1114,7 +1121,9 @@ mod tests {
         assert_eq!(built.bvh.nodes.len(), one.nodes.len());
         assert_eq!(built.bvh.prims.blocks.len(), one.prims.blocks.len());
         assert!(built.build_ms >= built.collapse_ms && built.collapse_ms >= 0.0);
-        let failed = timed_build(tris, || Err::<Vec<Triangle32>, _>("the mesh is gone"));
+        let failed = timed_build(PrimSet::from_triangles(tris), || {
+            Err::<PrimSet, _>("the mesh is gone")
+        });
         assert_eq!(failed.err(), Some("the mesh is gone"));
     }
 
@@ -1135,7 +1144,10 @@ mod tests {
         assert_eq!(tris[0].v[1], Vec3::X);
         assert_eq!(tris[1].v[2], Vec3::Z);
         let mesh = crate::scene::obj::parse_obj("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "d.obj");
-        assert_eq!(mesh_triangles(mesh.unwrap()), (vec![], 1));
+        let prims = mesh_prims(mesh.unwrap());
+        assert_eq!((prims.each_triangle().count(), prims.dropped), (0, 1));
+        // the mesh alone: the scene it goes through has a floor, the benchmark none
+        assert!(prims.floor.is_none() && prims.len(crate::geometry::PrimKind::Floor) == 0);
     }
 
     /// The Embree harness's ray files: count, then origin and direction per ray (the

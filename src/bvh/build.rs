@@ -180,7 +180,7 @@ impl Bounds {
 /// Builds the node array over the BVH kinds of `prims` and reorders those kinds'
 /// arrays into leaf order, but for the triangles themselves: returns the nodes (empty
 /// when there is nothing to bound) and the triangles' leaf order (`order[k]`: the index
-/// in `prims.triangles` of the k-th), from which the collapse packs them into blocks
+/// in `prims.tri_corners` of the k-th), from which the collapse packs them into blocks
 /// (`WideBvh::collapse`) without a copy in between.
 ///
 /// On more than one worker thread, the subtrees of large ranges are built in parallel
@@ -881,7 +881,7 @@ mod tests {
     #[test]
     fn parallel_build_is_the_serial_build() {
         let (mut serial, mut parallel) = (prims(), prims());
-        assert!(serial.triangles.len() + serial.spheres.len() > PARALLEL_REFS);
+        assert!(serial.tri_corners.len() + serial.spheres.len() > PARALLEL_REFS);
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()

@@ -73,16 +73,16 @@ impl Bvh {
     }
 }
 
-/// The triangles of a built set: none left in `triangles`; `blocks` one after another
+/// The triangles of a built set: none left in `tri_corners` (nor vertices); `blocks` one after another
 /// from triangle 0 (1 to 8 each, every `first` the last block's end) over one triangle
 /// per object index; every padding lane a point (three equal corners: never hit); and
 /// `block_at[k]` a block holding triangle 8·k.
 fn triangle_store(p: &PrimSet) -> Result<(), String> {
     let n = p.triangle_obj.len();
-    if !p.triangles.is_empty() {
+    if !p.tri_corners.is_empty() || !p.tri_vertices.is_empty() {
         return Err(format!(
             "{} triangles listed beside their blocks",
-            p.triangles.len()
+            p.tri_corners.len()
         ));
     }
     let mut next = 0usize;

@@ -259,8 +259,11 @@ pub struct PrimSet {
     pub spheres: Vec<sphere::Sphere32>,
     pub sphere_obj: Vec<u32>,
     /// The triangles as the scene gives them, until a BVH build packs them into
-    /// `blocks` and empties this (reach them through [`PrimSet::triangle`]).
-    pub triangles: Vec<triangle::Triangle32>,
+    /// `blocks` and empties these (reach them through [`PrimSet::triangle`]): their
+    /// corners' indices in `tri_vertices`, the vertices in the frame (a mesh's shared,
+    /// 18 bytes a mesh triangle where whole triangles took 36).
+    pub tri_corners: Vec<[u32; 3]>,
+    pub tri_vertices: Vec<Vec3>,
     pub triangle_obj: Vec<u32>,
     /// After a BVH build, every triangle, in leaf order, eight to a block
     /// ([`triangle::TriBlock`]): the wide tree's leaves, and the one copy kept.
@@ -351,24 +354,23 @@ impl PrimSet {
                     (bottoms[i], tops[i]) = (lowest(v), highest(v));
                 }
                 Shape::Mesh(m) => {
-                    s.triangles.reserve(m.triangles().len());
+                    s.tri_corners.reserve(m.triangles().len());
                     s.triangle_obj.reserve(m.triangles().len());
                     // each vertex moved into the frame once (`Triangle32::new`'s
-                    // rounding, vertex by vertex); the scene's own zero-area test only
-                    // in a mesh that has such triangles
-                    let v32: Vec<Vec3> = (m.vertices().iter())
-                        .map(|p| (*p - base).as_vec3())
-                        .collect();
+                    // rounding, vertex by vertex), into the pool the triangles share;
+                    // the scene's own zero-area test only in a mesh that has such
+                    // triangles
+                    let at = s.tri_vertices.len() as u32;
+                    (s.tri_vertices).extend(m.vertices().iter().map(|p| (*p - base).as_vec3()));
                     let any_zero_area = m.zero_area() > 0;
                     for (k, t) in m.triangles().iter().enumerate() {
-                        let t32 = triangle::Triangle32 {
-                            v: t.map(|i| v32[i as usize]),
-                        };
-                        s.push_triangle32(
-                            t32,
-                            any_zero_area && is_degenerate_triangle(&m.triangle(k)),
-                            id,
-                        );
+                        let v = &s.tri_vertices;
+                        let t32 = t.map(|i| v[(at + i) as usize]);
+                        let zero_area = any_zero_area && is_degenerate_triangle(&m.triangle(k));
+                        if s.keeps(&t32, zero_area) {
+                            s.tri_corners.push(t.map(|i| at + i));
+                            s.triangle_obj.push(id);
+                        }
                     }
                     (bottoms[i], tops[i]) = (lowest(m.vertices()), highest(m.vertices()));
                 }
@@ -449,22 +451,39 @@ impl PrimSet {
 
     /// Triangle `t` of object `id` in the frame, dropped when it has zero area there or
     /// in the scene (`zero_area`).
-    #[inline(always)]
     fn push_triangle32(&mut self, t: triangle::Triangle32, zero_area: bool, id: u32) {
-        if zero_area || is_degenerate_triangle(&t.v.map(|p| p.as_dvec3())) {
-            self.dropped += 1;
-            return;
+        if self.keeps(&t.v, zero_area) {
+            self.add_triangle(t, id);
         }
-        self.triangles.push(t);
+    }
+
+    /// Whether a triangle of these corners in the frame is kept: not when it has zero
+    /// area there or in the scene (`zero_area`), which counts it in `dropped`.
+    #[inline(always)]
+    fn keeps(&mut self, v: &[Vec3; 3], zero_area: bool) -> bool {
+        let drop = zero_area || is_degenerate_triangle(&v.map(|p| p.as_dvec3()));
+        self.dropped += drop as usize;
+        !drop
+    }
+
+    /// Adds triangle `t` of object `id`, corners of its own, as it is (before a build).
+    pub fn add_triangle(&mut self, t: triangle::Triangle32, id: u32) {
+        let at = self.tri_vertices.len() as u32;
+        self.tri_vertices.extend(t.v);
+        self.tri_corners.push([at, at + 1, at + 2]);
         self.triangle_obj.push(id);
     }
 
     /// Triangle `i`: after a BVH build, a lane of the block holding it (the block
-    /// [`PrimSet::block_at`] names, or one of the few after it); before, `triangles[i]`.
+    /// [`PrimSet::block_at`] names, or one of the few after it); before, its corners
+    /// from `tri_vertices`.
     #[inline]
     pub fn triangle(&self, i: usize) -> triangle::Triangle32 {
         if self.blocks.is_empty() {
-            return self.triangles[i];
+            let v = &self.tri_vertices;
+            return triangle::Triangle32 {
+                v: self.tri_corners[i].map(|c| v[c as usize]),
+            };
         }
         let b = &self.blocks[self.block_of(i)];
         b.tri.lane(i - b.first as usize)
@@ -482,7 +501,7 @@ impl PrimSet {
 
     /// Every triangle with its index, in index order, built or not.
     pub fn each_triangle(&self) -> impl Iterator<Item = (usize, triangle::Triangle32)> + '_ {
-        let listed = self.triangles.iter().copied().enumerate();
+        let listed = (0..self.tri_corners.len()).map(|i| (i, self.triangle(i)));
         let packed = (self.blocks.iter()).flat_map(|b| {
             (0..b.count as usize).map(move |l| (b.first as usize + l, b.tri.lane(l)))
         });
@@ -491,7 +510,7 @@ impl PrimSet {
 
     /// Makes `blocks` (every triangle, in index order: each block's `first` the one
     /// before's `first + count`, from 0) the store of the triangles, in place of
-    /// `triangles`, and indexes them for [`PrimSet::triangle`].
+    /// `tri_corners` and `tri_vertices`, and indexes them for [`PrimSet::triangle`].
     pub fn pack_triangles(&mut self, blocks: Vec<triangle::TriBlock>) {
         let mut at = vec![0u32; self.triangle_obj.len().div_ceil(8)];
         for (b, blk) in blocks.iter().enumerate() {
@@ -502,17 +521,17 @@ impl PrimSet {
         }
         self.block_at = at;
         self.blocks = blocks;
-        self.triangles = Vec::new();
+        self.tri_corners = Vec::new();
+        self.tri_vertices = Vec::new();
     }
 
     /// A triangle mesh on its own (object 0), no floor: the benchmark's input.
     pub fn from_triangles(tris: Vec<triangle::Triangle32>) -> PrimSet {
-        let n = tris.len();
-        PrimSet {
-            triangles: tris,
-            triangle_obj: vec![0; n],
-            ..PrimSet::default()
+        let mut s = PrimSet::default();
+        for t in tris {
+            s.add_triangle(t, 0);
         }
+        s
     }
 
     /// Number of primitives of a BVH kind.
@@ -563,7 +582,7 @@ impl PrimSet {
         }
     }
 
-    /// The index in `triangles` of triangle hit `code` and its scene object; `None`
+    /// The index of triangle hit `code` ([`PrimSet::triangle`]) and its scene object; `None`
     /// for any other code.
     #[inline]
     pub fn triangle_and_object(&self, code: i32) -> Option<(usize, u32)> {
@@ -1006,8 +1025,8 @@ mod tests {
             let a = PrimSet::from_scene(&scene(vec![Shape::Mesh(Arc::new(mesh))]), base);
             let b = PrimSet::from_scene(&scene(single), base);
             let bits = |p: &PrimSet| -> Vec<[u32; 9]> {
-                (p.triangles.iter())
-                    .map(|t| {
+                (p.each_triangle())
+                    .map(|(_, t)| {
                         let [a, b, c] = t.v.map(|q| q.to_array().map(f32::to_bits));
                         [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
                     })

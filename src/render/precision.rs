@@ -192,7 +192,7 @@ mod tests {
                 tris.insert(100, Triangle32::new(&v, DVec3::ZERO));
             }
             let mut prims = PrimSet::from_triangles(tris);
-            prims.triangle_obj = (0..prims.triangles.len() as u32).collect();
+            prims.triangle_obj = (0..prims.tri_corners.len() as u32).collect();
             if round % 2 == 1 {
                 // the floor 1e4 below the camera: the farther of it and the camera
                 prims.floor = Some(Floor32::new(DVec3::new(0.0, 0.0, 1e4)));
@@ -205,7 +205,7 @@ mod tests {
                 c.length().max(floor)
             };
             let mut best: Option<((f32, f32), usize)> = None;
-            for i in 0..prims.triangles.len() {
+            for i in 0..prims.tri_corners.len() {
                 let b = prims.bounds(PrimKind::Triangle, i);
                 let reach = b.lo.abs().max(b.hi.abs()).max_element();
                 let ratio = (b.hi - b.lo).length() / distance((b.lo + b.hi) * 0.5);
@@ -226,8 +226,7 @@ mod tests {
             );
             assert_eq!(d.beyond_range(), round % 4 == 3, "round {round}");
             // an exact tie: a copy of the winner, later in the array, loses
-            prims.triangles.push(prims.triangles[i]);
-            prims.triangle_obj.push(u32::MAX);
+            prims.add_triangle(prims.triangle(i), u32::MAX);
             assert_eq!(smallest_detail(&prims).map(|d| d.object), Some(i as u32));
         }
     }

@@ -179,7 +179,7 @@ impl WideBvh {
     /// [`plan`] (one walk in post order); the wide nodes top-down by the plan, which
     /// counts the triangle blocks; the blocks in leaf order, written once into an array
     /// of exactly that size (no growth, no copy), each triangle read once from
-    /// `prims.triangles`.
+    /// `prims` ([`PrimSet::triangle`]).
     pub fn collapse(nodes: &[BvhNode], prims: &mut PrimSet, order: Vec<u32>) -> WideBvh {
         let mut w = WideBvh::default();
         if nodes.is_empty() {
@@ -298,8 +298,19 @@ impl WideBvh {
                 prefetch_lines(&nodes[a.node as usize]);
                 let (f, c) = (a.first as usize, a.count as usize);
                 for &k in order.get(f..f + c).unwrap_or_default() {
-                    if let Some(t) = prims.triangles.get(k as usize) {
+                    if let Some(t) = prims.tri_corners.get(k as usize) {
                         prefetch_lines(t);
+                    }
+                }
+            }
+            // and two ahead, their corners (whose indices are in the cache by then)
+            if let Some(a) = tri_slots.get(i + 2) {
+                let (f, c) = (a.first as usize, a.count as usize);
+                for &k in order.get(f..f + c).unwrap_or_default() {
+                    for &j in prims.tri_corners.get(k as usize).into_iter().flatten() {
+                        if let Some(v) = prims.tri_vertices.get(j as usize) {
+                            prefetch_lines(v);
+                        }
                     }
                 }
             }
@@ -330,7 +341,7 @@ impl WideBvh {
         w
     }
 
-    /// Packs the triangles of leaf slot `t` (`order` names them in `prims.triangles`)
+    /// Packs the triangles of leaf slot `t` (`order` names them in `prims`)
     /// into blocks of 8 on `blocks`, and each lane's box of the binary leaf its triangle
     /// came from into `leaf_boxes`.
     fn push_blocks(
@@ -393,7 +404,7 @@ impl WideBvh {
                 lanes[k]
             };
             let tris: [Triangle32; 8] =
-                std::array::from_fn(|l| prims.triangles[chunk[l.min(chunk.len() - 1)] as usize]);
+                std::array::from_fn(|l| prims.triangle(chunk[l.min(chunk.len() - 1)] as usize));
             blocks.push(TriBlock {
                 tri: Triangle8::new(&tris[..chunk.len()]),
                 first: t.first + 8 * k as u32,
