@@ -40,7 +40,7 @@ pub struct RaySet {
 
 /// The triangles of an OBJ mesh in f32 as the renderer takes them (the standard
 /// meshes are written with exact float32 values, so nothing is rounded); zero-area
-/// triangles are dropped, by the renderer's rule ([`mesh_triangles`]).
+/// triangles are dropped, by the renderer's rule ([`mesh_prims`]).
 pub fn load_mesh(path: &Path) -> Result<Vec<Triangle32>, ObjError> {
     let prims = mesh_prims(load_obj(path)?);
     Ok(prims.each_triangle().map(|(_, t)| t).collect())

@@ -359,7 +359,8 @@ impl PrimSet {
                     // each vertex moved into the frame once (`Triangle32::new`'s
                     // rounding, vertex by vertex), into the pool the triangles share;
                     // the scene's own zero-area test only in a mesh that has such
-                    // triangles
+                    // triangles. (u32 indices: 2³² vertices would take 48 GB in f32
+                    // alone, past what any machine of the resource contract holds.)
                     let at = s.tri_vertices.len() as u32;
                     (s.tri_vertices).extend(m.vertices().iter().map(|p| (*p - base).as_vec3()));
                     let any_zero_area = m.zero_area() > 0;
@@ -468,6 +469,10 @@ impl PrimSet {
 
     /// Adds triangle `t` of object `id`, corners of its own, as it is (before a build).
     pub fn add_triangle(&mut self, t: triangle::Triangle32, id: u32) {
+        debug_assert!(
+            self.blocks.is_empty(),
+            "a built set takes no more triangles"
+        );
         let at = self.tri_vertices.len() as u32;
         self.tri_vertices.extend(t.v);
         self.tri_corners.push([at, at + 1, at + 2]);

@@ -293,7 +293,8 @@ impl WideBvh {
         let mut blocks = huge_vec(n_blocks as usize);
         w.leaf_boxes = huge_vec(n_blocks as usize);
         for (i, &t) in tri_slots.iter().enumerate() {
-            // a few slots ahead: their binary node (its subtree's boxes) and triangles
+            // a few slots ahead: their binary node (its subtree's boxes) and their
+            // triangles' corner indices
             if let Some(a) = tri_slots.get(i + 4) {
                 prefetch_lines(&nodes[a.node as usize]);
                 let (f, c) = (a.first as usize, a.count as usize);
