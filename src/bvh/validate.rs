@@ -377,6 +377,20 @@ mod tests {
         *v = f32x8::new(a);
     }
 
+    /// A mesh that loses every triangle as degenerate, with nothing else to bound,
+    /// builds an empty tree and leaves none of its vertices behind.
+    #[test]
+    fn a_mesh_of_degenerate_triangles_alone_leaves_nothing_behind() {
+        let text = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n";
+        let mesh = crate::scene::obj::parse_obj(text, "d.obj").unwrap();
+        let prims = crate::bvh::bench::mesh_prims(mesh);
+        assert!(!prims.tri_vertices.is_empty() && prims.tri_corners.is_empty());
+        let bvh = Bvh::build(prims);
+        assert!(bvh.nodes.is_empty());
+        assert_eq!(bvh.validate(), Ok(()));
+        assert!(bvh.prims.tri_vertices.is_empty());
+    }
+
     type Breaker = Box<dyn Fn(&mut Bvh)>;
 
     #[test]

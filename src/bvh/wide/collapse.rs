@@ -183,6 +183,8 @@ impl WideBvh {
     pub fn collapse(nodes: &[BvhNode], prims: &mut PrimSet, order: Vec<u32>) -> WideBvh {
         let mut w = WideBvh::default();
         if nodes.is_empty() {
+            // no triangle, but perhaps a mesh's vertices, all its triangles dropped
+            prims.pack_triangles(Vec::new());
             return w;
         }
         w.diagonal = {
