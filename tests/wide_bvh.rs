@@ -469,6 +469,13 @@ fn every_triangle_is_in_exactly_one_block_lane() {
         seen.iter().all(|&c| c == 1),
         "a triangle index is missing or repeated"
     );
+    // a leaf's reader, from anywhere in a block, across the blocks after it
+    for start in [0, 5, 13, n / 2 + 3] {
+        let mut run = bvh.prims.triangles_from(start);
+        for j in start..n.min(start + 40) {
+            assert_eq!(run.at(j), bvh.prims.triangle(j), "from {start}, triangle {j}");
+        }
+    }
     // and the lanes hold the mesh's triangles, each once, bit for bit
     let bits = |t: &Triangle32| t.v.map(|p| p.to_array().map(f32::to_bits));
     let mut want: Vec<_> = tris.iter().map(bits).collect();

@@ -300,6 +300,30 @@ pub struct PrimSet {
     pub curved: Vec<(u32, Shape)>,
 }
 
+/// Triangles of a [`PrimSet`] read at rising indices ([`PrimSet::triangles_from`]).
+pub struct TriCursor<'a> {
+    set: &'a PrimSet,
+    /// The block of the last triangle read (built sets).
+    block: usize,
+}
+
+impl TriCursor<'_> {
+    /// Triangle `i`, at or past the last one read.
+    #[inline(always)]
+    pub fn at(&mut self, i: usize) -> triangle::Triangle32 {
+        let p = self.set;
+        if p.blocks.is_empty() {
+            return p.triangle(i);
+        }
+        let mut b = &p.blocks[self.block];
+        while i >= (b.first + b.count) as usize {
+            self.block += 1;
+            b = &p.blocks[self.block];
+        }
+        b.tri.lane(i - b.first as usize)
+    }
+}
+
 impl PrimSet {
     /// The primitives of `scene` relative to `base`, the floor included. Degenerate
     /// triangles and all-zero quadrics are dropped (the reference never hits them either).
@@ -482,7 +506,7 @@ impl PrimSet {
     /// Triangle `i`: after a BVH build, a lane of the block holding it (the block
     /// [`PrimSet::block_at`] names, or one of the few after it); before, its corners
     /// from `tri_vertices`.
-    #[inline]
+    #[inline(always)]
     pub fn triangle(&self, i: usize) -> triangle::Triangle32 {
         if self.blocks.is_empty() {
             let v = &self.tri_vertices;
@@ -495,13 +519,25 @@ impl PrimSet {
     }
 
     /// The block holding triangle `i` of a built set.
-    #[inline]
+    #[inline(always)]
     pub fn block_of(&self, i: usize) -> usize {
         let mut b = self.block_at[i >> 3] as usize;
         while i >= (self.blocks[b].first + self.blocks[b].count) as usize {
             b += 1;
         }
         b
+    }
+
+    /// A reader of triangles at rising indices from `i` (a leaf's run, in one block or
+    /// two): the block is found once, then followed.
+    #[inline(always)]
+    pub fn triangles_from(&self, i: usize) -> TriCursor<'_> {
+        let block = if self.blocks.is_empty() {
+            0
+        } else {
+            self.block_of(i)
+        };
+        TriCursor { set: self, block }
     }
 
     /// Every triangle with its index, in index order, built or not.
@@ -693,6 +729,7 @@ impl PrimSet {
         hit: &mut HitPacket8,
     ) {
         let zero = (f32x8::ZERO, f32x8::ZERO);
+        let mut tris = None;
         for i in first..first + count {
             let code = prim_code(kind, i);
             match kind {
@@ -701,7 +738,8 @@ impl PrimSet {
                     self.record_x8(hit, m, t, zero, code);
                 }
                 PrimKind::Triangle => {
-                    let (m, t, u, v) = T::intersect_x8(&self.triangle(i), r, active, hit.t);
+                    let tri = tris.get_or_insert_with(|| self.triangles_from(i)).at(i);
+                    let (m, t, u, v) = T::intersect_x8(&tri, r, active, hit.t);
                     self.record_x8(hit, m, t, (u, v), code);
                 }
                 PrimKind::Quadric => {
@@ -836,10 +874,14 @@ impl PrimSet {
         t_max: f32x8,
     ) -> Mask8 {
         let mut left = active;
+        let mut tris = None;
         for i in first..first + count {
             let m = match kind {
                 PrimKind::Sphere => self.spheres[i].occluded_x8(r, left, t_max),
-                PrimKind::Triangle => T::occluded_x8(&self.triangle(i), r, left, t_max),
+                PrimKind::Triangle => {
+                    let tri = tris.get_or_insert_with(|| self.triangles_from(i)).at(i);
+                    T::occluded_x8(&tri, r, left, t_max)
+                }
                 PrimKind::Quadric => self.quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::FreeQuadric => self.free_quadrics[i].occluded_x8(r, left, t_max),
                 PrimKind::Floor => match &self.floor {
@@ -865,6 +907,7 @@ impl PrimSet {
         r: &Ray1,
         hit: &mut Hit1,
     ) {
+        let mut tris = None;
         for i in first..first + count {
             let code = prim_code(kind, i);
             match kind {
@@ -874,7 +917,8 @@ impl PrimSet {
                     }
                 }
                 PrimKind::Triangle => {
-                    if let Some((t, u, v)) = T::intersect_1(&self.triangle(i), r, hit.t) {
+                    let tri = tris.get_or_insert_with(|| self.triangles_from(i)).at(i);
+                    if let Some((t, u, v)) = T::intersect_1(&tri, r, hit.t) {
                         self.record_1(hit, t, u, v, code);
                     }
                 }
@@ -931,9 +975,13 @@ impl PrimSet {
         r: &Ray1,
         t_max: f32,
     ) -> bool {
+        let mut tris = None;
         (first..first + count).any(|i| match kind {
             PrimKind::Sphere => self.spheres[i].occluded_1(r, t_max),
-            PrimKind::Triangle => T::occluded_1(&self.triangle(i), r, t_max),
+            PrimKind::Triangle => {
+                let tri = tris.get_or_insert_with(|| self.triangles_from(i)).at(i);
+                T::occluded_1(&tri, r, t_max)
+            }
             PrimKind::Quadric => self.quadrics[i].occluded_1(r, t_max),
             PrimKind::FreeQuadric => self.free_quadrics[i].occluded_1(r, t_max),
             PrimKind::Floor => self.floor.is_some_and(|f| f.occluded_1(r, t_max)),

@@ -467,7 +467,7 @@ pub struct Triangle8 {
 
 impl Triangle8 {
     /// Triangle `j` (lane `j` of each coordinate).
-    #[inline]
+    #[inline(always)]
     pub fn lane(&self, j: usize) -> Triangle32 {
         let c = |i: usize| {
             let p = &self.v[i];
