@@ -473,7 +473,11 @@ fn every_triangle_is_in_exactly_one_block_lane() {
     for start in [0, 5, 13, n / 2 + 3] {
         let mut run = bvh.prims.triangles_from(start);
         for j in start..n.min(start + 40) {
-            assert_eq!(run.at(j), bvh.prims.triangle(j), "from {start}, triangle {j}");
+            assert_eq!(
+                run.at(j),
+                bvh.prims.triangle(j),
+                "from {start}, triangle {j}"
+            );
         }
     }
     // and the lanes hold the mesh's triangles, each once, bit for bit
