@@ -733,9 +733,7 @@ impl AccelBytes {
             wide_nodes: size_of_val(&bvh.wide.nodes[..]),
             wide_blocks: size_of_val(&p.blocks[..]) + size_of_val(&p.block_at[..]),
             leaf_boxes: size_of_val(&bvh.wide.leaf_boxes[..]),
-            prims: size_of_val(&p.tri_corners[..])
-                + size_of_val(&p.tri_vertices[..])
-                + size_of_val(&p.triangle_obj[..])
+            prims: size_of_val(&p.triangle_obj[..])
                 + size_of_val(&p.spheres[..])
                 + size_of_val(&p.sphere_obj[..])
                 + size_of_val(&p.quadrics[..])

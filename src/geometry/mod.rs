@@ -313,7 +313,10 @@ impl TriCursor<'_> {
     pub fn at(&mut self, i: usize) -> triangle::Triangle32 {
         let p = self.set;
         if p.blocks.is_empty() {
-            return p.triangle(i);
+            let v = &p.tri_vertices;
+            return triangle::Triangle32 {
+                v: p.tri_corners[i].map(|c| v[c as usize]),
+            };
         }
         let mut b = &p.blocks[self.block];
         while i >= (b.first + b.count) as usize {
@@ -508,14 +511,7 @@ impl PrimSet {
     /// from `tri_vertices`.
     #[inline(always)]
     pub fn triangle(&self, i: usize) -> triangle::Triangle32 {
-        if self.blocks.is_empty() {
-            let v = &self.tri_vertices;
-            return triangle::Triangle32 {
-                v: self.tri_corners[i].map(|c| v[c as usize]),
-            };
-        }
-        let b = &self.blocks[self.block_of(i)];
-        b.tri.lane(i - b.first as usize)
+        self.triangles_from(i).at(i)
     }
 
     /// The block holding triangle `i` of a built set.
