@@ -607,8 +607,10 @@ fn compare_packets(
 ) -> (PacketTally, Steps, Steps) {
     let mut out = (PacketTally::default(), Steps::default(), Steps::default());
     // the packet walks as the renderer calls them, then every packet whose lanes share
-    // their signs forced through the wide walk (spread ∞), however incoherent
-    for spread in [FRUSTUM_SPREAD, f32::INFINITY] {
+    // their signs and lie within `LANES_SPREAD` through the hybrid walk (spread 0: past
+    // the frustum's limit), then every such packet forced through the frustum walk
+    // (spread ∞), however incoherent
+    for spread in [FRUSTUM_SPREAD, 0.0, f32::INFINITY] {
         let name = format!("{name} (spread {spread})");
         let r = compare_packets_at(&name, bvh, packets, rng, nan_lane, spread);
         if spread == FRUSTUM_SPREAD {
@@ -774,6 +776,90 @@ fn compare_packets_at(
         "{name}: too many edge differences: {tally:?}"
     );
     (tally, sx, sxb)
+}
+
+/// Packets past the frustum's limit whose lanes share their direction signs within
+/// `LANES_SPREAD` (a curved mirror's: origins a millimetre apart, directions 0.03 to
+/// 0.19 rad apart) take the hybrid walk of the wide tree: every lane gets what the
+/// binary packet walk gives it, bit for bit (t, primitive, u, v), and the same shadow
+/// answer.
+#[test]
+fn spread_packets_take_the_hybrid_walk_and_get_the_binary_walks_answers() {
+    let bvh = torus_bvh();
+    let mut rng = Rng(31);
+    let (mut packets, mut hits, mut blocked, mut lanes) = (0, 0, 0, 0);
+    while packets < 4000 {
+        // at least 0.4 from every axis plane: a turn of 0.19 rad keeps every sign
+        let base = rng.unit();
+        if base.abs().min_element() < 0.4 {
+            continue;
+        }
+        packets += 1;
+        // a unit vector across `base`
+        let across = |rng: &mut Rng| {
+            let u = rng.unit();
+            (u - base * u.dot(base)).normalize()
+        };
+        // lane 0 along `base`, lane 1 `spread` from it: past the frustum's limit
+        let spread = rng.range(
+            2.0 * f64::from(FRUSTUM_SPREAD),
+            0.8 * f64::from(LANES_SPREAD),
+        );
+        let at = DVec3::new(
+            rng.range(-1.3, 1.3),
+            rng.range(-1.3, 1.3),
+            rng.range(-0.35, 0.35),
+        );
+        let mut o = [Vec3::ZERO; 8];
+        let mut d = [Vec3::ZERO; 8];
+        for l in 0..8 {
+            let turn = match l {
+                0 => 0.0,
+                1 => spread,
+                _ => rng.range(0.0, spread),
+            };
+            d[l] = (base + across(&mut rng) * turn).normalize().as_vec3();
+            o[l] = (at + rng.unit() * 1e-3).as_vec3();
+        }
+        let active = Mask8::ALL;
+        let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), active);
+        let t0 = f32x8::splat(f32::INFINITY);
+        let (mut h, mut hb) = (HitPacket8::new(t0), HitPacket8::new(t0));
+        let mut steps = Steps::default();
+        bvh.intersect_x8::<Watertight>(&p, active, &mut h, &mut steps);
+        bvh.intersect_x8_binary::<Watertight>(&p, active, &mut hb, &mut steps);
+        let t_occ = f32x8::new(std::array::from_fn(|_| rng.range(0.05, 2.0) as f32));
+        let occ = bvh.occluded_x8::<Watertight>(&p, active, t_occ, &mut steps);
+        let occ_b = bvh.occluded_x8_binary::<Watertight>(&p, active, t_occ, &mut steps);
+        for l in 0..8 {
+            let lane = |h: &HitPacket8| {
+                let [t, u, v] = [h.t, h.u, h.v].map(|x| x.to_array()[l].to_bits());
+                (t, h.prim_lane(l), u, v)
+            };
+            assert_eq!(
+                lane(&h),
+                lane(&hb),
+                "packet {packets}, lane {l}: {:?}",
+                p.ray(l)
+            );
+            assert_eq!(
+                occ.lane(l),
+                occ_b.lane(l),
+                "packet {packets}, lane {l} (shadow)"
+            );
+            lanes += 1;
+            hits += (h.prim_lane(l) >= 0) as usize;
+            blocked += occ.lane(l) as usize;
+        }
+    }
+    assert!(
+        hits > lanes / 4 && hits < lanes,
+        "{hits} hits of {lanes} lanes"
+    );
+    assert!(
+        blocked > lanes / 8 && blocked < lanes,
+        "{blocked} blocked of {lanes} lanes"
+    );
 }
 
 #[test]

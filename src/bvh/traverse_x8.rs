@@ -126,18 +126,20 @@ fn lanes_of<const H: usize, const N: usize>(active: [Mask8; H]) -> ([(usize, usi
 /// (mixed direction signs) one by one through the wide single-ray walk instead of
 /// walking the binary tree as a packet, which would fetch the nodes of eight unrelated
 /// rays. (Only trees that the frustum walk serves get here: it must not be below
-/// [`WIDE_PACKET_MIN_NODES`].)
+/// [`WIDE_PACKET_MIN_NODES`]. In these trees no packet walks the binary tree: those
+/// just past the frustum's limit take the hybrid walk, [`Bvh::intersect_x8_hybrid`].)
 pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
 const _: () = assert!(LANES_MIN_NODES >= WIDE_PACKET_MIN_NODES);
 
 impl Bvh {
     /// Nearest hit of each active lane, below the lane's current `hit.t`, recorded in
     /// `hit`. Coherent packets (lanes sharing their direction signs, within
-    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree (`wide/walk_x8.rs`); in trees of at least
-    /// [`LANES_MIN_NODES`] wide nodes, packets of mixed signs or spread past
-    /// [`LANES_SPREAD`] take the 8-wide single-ray walk per lane
-    /// ([`Bvh::intersect_x8_lanes`]); the others walk the binary tree
-    /// ([`Bvh::intersect_x8_binary`]).
+    /// [`FRUSTUM_SPREAD`]) walk the 8-wide tree as one frustum (`wide/walk_x8.rs`); in
+    /// trees of at least [`LANES_MIN_NODES`] wide nodes, packets of mixed signs or
+    /// spread past [`LANES_SPREAD`] take the 8-wide single-ray walk per lane
+    /// ([`Bvh::intersect_x8_lanes`]), and those between the two limits the hybrid walk
+    /// of the 8-wide tree ([`Bvh::intersect_x8_hybrid`]); in smaller trees packets
+    /// walk the binary tree ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -200,7 +202,8 @@ impl Bvh {
                 self.intersect_beside_x8::<T>(r, active, hit, steps);
                 return;
             }
-            let how_far = match shared_octant(r, act) {
+            let oct = shared_octant(r, act);
+            let how_far = match oct {
                 Some(oct) => match self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) {
                     Ok(()) => {
                         self.intersect_beside_x8::<T>(r, active, hit, steps);
@@ -212,6 +215,12 @@ impl Bvh {
             };
             if self.lane_walks(how_far) {
                 self.intersect_x8_lanes::<T>(r, active, hit, steps);
+                return;
+            }
+            if let Some(oct) = oct {
+                // just past the frustum's limit: the hybrid walk
+                self.intersect_x8_hybrid::<T>(r, act, oct, hit, steps);
+                self.intersect_beside_x8::<T>(r, active, hit, steps);
                 return;
             }
         }
@@ -294,8 +303,8 @@ impl Bvh {
     }
 
     /// [`Bvh::intersect_x8`] through the binary tree only: every packet in trees too
-    /// small for the 8-wide walks, packets too spread for the frustum, the benches'
-    /// `mode=8b`, and the tests' oracle of the other packet walks.
+    /// small for the 8-wide walks, the benches' `mode=8b`, and the tests' oracle of the
+    /// other packet walks.
     pub fn intersect_x8_binary<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -563,10 +572,11 @@ impl Bvh {
         left
     }
 
-    /// The any-hit query: the list beside the tree, then the wide tree as one frustum
-    /// when `wide_octant` (the lanes' direction signs, the spread limit) is given and
-    /// the packet is coherent enough, else the lanes' own wide walks when they lie far
-    /// apart ([`Bvh::lane_walks`]), else the binary tree as a packet.
+    /// The any-hit query: the list beside the tree, then, when `wide_octant` (the
+    /// lanes' direction signs, the spread limit) is given, the wide tree as one frustum
+    /// if the packet is coherent enough, else the lanes' own wide walks when they lie
+    /// far apart ([`Bvh::lane_walks`]), else the hybrid walk
+    /// ([`Bvh::occluded_x8_hybrid`]); without it, the binary tree as a packet.
     #[inline(always)]
     fn occluded_x8_with<T: TriangleKernel>(
         &self,
@@ -577,23 +587,30 @@ impl Bvh {
         steps: &mut Steps,
     ) -> Mask8 {
         let mut left = self.occluded_beside_x8::<T>(r, active, t_max, steps);
-        // `None`: the frustum walk not tried (the binary walk)
-        let frustum = match wide_octant {
+        // `None`: the wide tree not walked as a packet (the binary walk); `Err`: the
+        // lanes too far apart for a packet (their own walks)
+        let packet = match wide_octant {
             Some((octant, spread)) if left.any() => {
                 let enter = self.enter_x8(r, left & finite_lanes(r), t_max);
                 Some(if enter.none() {
                     Ok(Mask8::NONE)
                 } else {
                     self.occluded_x8_wide::<T>(r, enter, octant, spread, t_max, steps)
+                        .or_else(|how_far| {
+                            if self.lane_walks(how_far) {
+                                Err(how_far)
+                            } else {
+                                // just past the frustum's limit: the hybrid walk
+                                Ok(self.occluded_x8_hybrid::<T>(r, enter, octant, t_max, steps))
+                            }
+                        })
                 })
             }
             _ => None,
         };
-        if let Some(Ok(blocked)) = frustum {
+        if let Some(Ok(blocked)) = packet {
             left = left.and_not(blocked);
-        } else if let Some(Err(how_far)) = frustum
-            && self.lane_walks(how_far)
-        {
+        } else if let Some(Err(_)) = packet {
             let [blocked] = self.occluded_lanes_of::<T, 1>([r], [left], [t_max], false, steps);
             left = left.and_not(blocked);
         } else if !self.nodes.is_empty() && left.any() {

@@ -101,18 +101,7 @@ fn plan(nodes: &[BvhNode], leaf_slot: impl Fn(usize) -> Option<Slot>) -> Vec<[u8
         // the children over k slots, k = 2..=8 (a split always exists: an opened node
         // is never a leaf slot, whatever the costs, NaN included; selects, not branches:
         // which split wins is data, not a pattern)
-        let mut c = [f32::INFINITY; 8];
-        let mut p = [1u8; 8];
-        for k in 2..=8 {
-            let (mut best, mut at) = (f32::INFINITY, 1u8);
-            for j in 1..k {
-                let v = cl[j - 1] + cr[k - j - 1];
-                let better = v < best;
-                best = if better { v } else { best };
-                at = if better { j as u8 } else { at };
-            }
-            (c[k - 1], p[k - 1]) = (best, at);
-        }
+        let (mut c, mut p) = split_costs(&cl, &cr);
         // one slot: a leaf, or a wide node over its children's best eight slots
         let node = C_NODE * area + c[7];
         p[0] = if as_leaf.is_some() && leaf <= node {
@@ -131,6 +120,29 @@ fn plan(nodes: &[BvhNode], leaf_slot: impl Fn(usize) -> Option<Slot>) -> Vec<[u8
         plan[i] = p;
     }
     plan
+}
+
+/// The least cost of a binary node's two children over k slots (lane k − 1, k = 2..=8)
+/// and the slots given to the left child for it, the fewest on a tie; `cl`, `cr`: the
+/// children's least costs in at most 1..=8 slots. Lane 0 (one slot cannot hold two
+/// children) is ∞ and 1. All seven splits of every k at once, in the order and with the
+/// additions of a loop over k and then j (`tests`), so the plan is the same bit for bit.
+#[inline]
+fn split_costs(cl: &[f32; 8], cr: &[f32; 8]) -> ([f32; 8], [u8; 8]) {
+    // behind eight ∞, so that lane m of `right[8 - j..]` is cr[m − j], or ∞ for m < j
+    let mut right = [f32::INFINITY; 16];
+    right[8..].copy_from_slice(cr);
+    let mut best = f32x8::splat(f32::INFINITY);
+    let mut at = f32x8::splat(1.0);
+    for j in 1..8 {
+        // k = m + 1 slots: j to the left child, k − j to the right
+        let shifted: [f32; 8] = right[8 - j..16 - j].try_into().expect("8 lanes");
+        let v = f32x8::splat(cl[j - 1]) + f32x8::new(shifted);
+        let better = v.simd_lt(best);
+        best = better.select(v, best);
+        at = better.select(f32x8::splat(j as f32), at);
+    }
+    (best.to_array(), at.to_array().map(|j| j as u8))
 }
 
 /// The slots of the wide node that binary node `x` becomes (`plan[x][0]` is a split):
@@ -565,6 +577,43 @@ mod tests {
             c
         }
         best(nodes, 0, &mut (HashMap::new(), HashMap::new()))
+    }
+
+    /// `split_costs` by the loop it stands for: k, then j, strictly less.
+    fn split_costs_by_loop(cl: &[f32; 8], cr: &[f32; 8]) -> ([f32; 8], [u8; 8]) {
+        let mut c = [f32::INFINITY; 8];
+        let mut p = [1u8; 8];
+        for k in 2..=8 {
+            for j in 1..k {
+                let v = cl[j - 1] + cr[k - j - 1];
+                if v < c[k - 1] {
+                    (c[k - 1], p[k - 1]) = (v, j as u8);
+                }
+            }
+        }
+        (c, p)
+    }
+
+    #[test]
+    fn split_costs_are_the_loops_bit_for_bit() {
+        let mut rng = Xorshift(7);
+        // few distinct values (ties), ∞ and NaN among them
+        let values = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, f32::INFINITY, f32::NAN];
+        for round in 0..20_000 {
+            let mut pick = |_| {
+                if round % 2 == 0 {
+                    values[(rng.next_u64() % values.len() as u64) as usize]
+                } else {
+                    rng.f32() * 10.0
+                }
+            };
+            let cl: [f32; 8] = std::array::from_fn(&mut pick);
+            let cr: [f32; 8] = std::array::from_fn(&mut pick);
+            let (c, p) = split_costs(&cl, &cr);
+            let (c0, p0) = split_costs_by_loop(&cl, &cr);
+            assert_eq!(c.map(f32::to_bits), c0.map(f32::to_bits), "{cl:?} {cr:?}");
+            assert_eq!(p, p0, "{cl:?} {cr:?}");
+        }
     }
 
     /// The collapse builds a wide tree of the least cost the plan's heuristic allows,

@@ -7,7 +7,7 @@
 //! instruction. Node tests stay eight-wide (one per node for the whole packet);
 //! triangles are tested against sixteen lanes at once. Spheres and clipped quadrics,
 //! the floor and the unbounded quadrics, and packets just too spread for one frustum
-//! go through the 8-lane code, half by half; packets of mixed direction signs or
+//! go through the 8-lane code, half by half (the spread ones by the hybrid walk); packets of mixed direction signs or
 //! scattered far past the frustum's limit take all sixteen lanes' single-ray walks
 //! (closest hit: stepped in turn). A lane gets what the 8-lane walks give it, bit for
 //! bit: the kernels are the same generic code (`tests/lanes.rs`).
@@ -314,7 +314,7 @@ impl Bvh {
         hit: &mut HitPacket16,
         steps: &mut Steps,
     ) {
-        self.frustum_walk::<RayPacket16, T, OCT>(r, act, fr, hit, steps);
+        self.frustum_walk::<RayPacket16, T, OCT, false>(r, act, fr, hit, steps);
     }
 
     /// The lanes of `active` blocked with 0 < t < t_max: per lane what
@@ -386,6 +386,6 @@ impl Bvh {
         t_max: F16,
         steps: &mut Steps,
     ) -> M16 {
-        self.frustum_occlusion::<RayPacket16, T, OCT>(r, act, fr, t_max, steps)
+        self.frustum_occlusion::<RayPacket16, T, OCT, false>(r, act, fr, t_max, steps)
     }
 }

@@ -9,7 +9,11 @@
 //! are visited nearest first, and a popped subtree is skipped when that bound lies
 //! behind every active lane's nearest hit. Nothing is decided per lane above the
 //! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
-//! own slab test meets its box ([`entered_leaves`]). In a leaf, the frustum test of a
+//! own slab test meets its box ([`entered_slots`]). Packets past the frustum's limit
+//! whose lanes still share their signs (a curved mirror's, `FRUSTUM_SPREAD` to
+//! `LANES_SPREAD`) take the hybrid walk: the same walk with a frustum of no limit, each
+//! slot it meets, interior or leaf, then tested per lane, so a subtree is entered only
+//! where some lane's own test enters it ([`Bvh::intersect_x8_hybrid`]). In a leaf, the frustum test of a
 //! triangle block's per-lane binary leaf boxes (`WideBvh::leaf_boxes`) picks the
 //! triangles to test (all of them in a block of one binary leaf, whose box the frustum
 //! has passed); each is tested against the whole packet with the packet kernel
@@ -43,17 +47,18 @@ use crate::math::packet::{Cmp8, FAR_WIDEN, HitPacket8, Mask8, RayPacket8, Vec3x8
 use crate::simd;
 use crate::simd::packet::{all_same, dot3, max_in, min_in};
 
-/// Largest spread of a packet served by the wide packet walk (radians between lane
+/// Largest spread of a packet served by the frustum walk (radians between lane
 /// directions; origins: this fraction of the tree's diagonal); wider packets take the
-/// binary packet walk, whose per-lane box tests cull better than one wide frustum. The
-/// two break even near 0.023 (benches/README.md); this keeps a margin.
+/// hybrid walk ([`Bvh::intersect_x8_hybrid`]), whose per-lane slot tests cull better
+/// than one wide frustum. The frustum walk and the binary packet walk (then in the
+/// hybrid's place) broke even near 0.023 (benches/README.md); this keeps a margin.
 pub const FRUSTUM_SPREAD: f32 = 0.015;
 
 /// Spread (as [`FRUSTUM_SPREAD`]) past which a packet's lanes take their own single-ray
 /// walks of the wide tree (closest hit: stepped in turn; any hit: one after another)
-/// instead of the binary packet walk: lanes that far apart share few nodes (random
-/// shadow rays of one light), while packets just past the frustum limit (a silhouette,
-/// a curved mirror) still share most of their paths (figures: benches/README.md).
+/// instead of the hybrid walk: lanes that far apart share few nodes (random shadow
+/// rays of one light), while packets just past the frustum limit (a silhouette, a
+/// curved mirror) still share most of their paths (figures: benches/README.md).
 pub const LANES_SPREAD: f32 = 16.0 * FRUSTUM_SPREAD;
 
 /// Fewest wide nodes for which packets take the wide walk at all (`Bvh::intersect_x8`):
@@ -286,19 +291,22 @@ pub(crate) fn lane_box(bounds: &[f32x8; 6], j: usize) -> BvhNode {
 }
 
 /// Of the slots `bits` of `node` (those the frustum meets), all but the triangle
-/// leaves that no lane of `act` meets by its own slab test (the binary walk's test
-/// of the slot's box, [`lane_box`]): a lane that misses the slot's box misses
-/// every binary leaf box in it, and a triangle's hit counts only for lanes that pass
-/// its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
+/// leaves, and with `interior` the interior slots, that no lane of `act` meets by its
+/// own slab test (the binary walk's test of the slot's box, [`lane_box`]): a lane that
+/// misses a slot's box misses every box below it (each box holds its children's, and
+/// the test is monotone in the planes), and a triangle's hit counts only for lanes that
+/// pass its leaf box. (Spheres and quadrics have no such per-lane box test in the leaf,
 /// so their leaves are kept.) The frustum of origins spread over a surface (shadow
-/// rays) meets many small leaves between the lanes that no lane meets.
+/// rays) meets many small leaves between the lanes that no lane meets; the frustum of
+/// a spread packet, many subtrees.
 #[inline(always)]
-fn entered_leaves<P: WidePacket>(
+fn entered_slots<P: WidePacket>(
     r: &P,
     node: &super::WideNode,
     bits: u32,
     act: Mask<P>,
     t_max: P::L,
+    interior: bool,
 ) -> u32 {
     use simd::LaneMask as _;
     let [o, _, inv] = r.rays();
@@ -306,7 +314,8 @@ fn entered_leaves<P: WidePacket>(
     while scan != 0 {
         let s = scan.trailing_zeros() as usize;
         scan &= scan - 1;
-        if node.slot[s].holds(PrimKind::Triangle)
+        let slot = node.slot[s];
+        if (slot.holds(PrimKind::Triangle) || interior && slot.is_interior())
             && lane_box(&node.bounds, s)
                 .intersect_lanes(o, inv, act, t_max)
                 .0
@@ -327,7 +336,7 @@ pub(crate) trait WidePacket {
     type L: simd::Lanes;
     type Hit;
     /// Whether the any-hit walk tests each triangle leaf the frustum meets against
-    /// every lane before it is pushed ([`entered_leaves`]): it pays at sixteen lanes,
+    /// every lane before it is pushed ([`entered_slots`]): it pays at sixteen lanes,
     /// whose frustum spans twice the origins of eight (benches/README.md).
     const LEAVES_PER_LANE: bool;
     /// Origins, unit directions and 1/d of the lanes.
@@ -489,6 +498,59 @@ impl Bvh {
         Ok(())
     }
 
+    /// The tree part of [`Bvh::intersect_x8`] for a packet past the frustum's limit
+    /// whose lanes (`active`, finite) still share the direction signs `octant`: the
+    /// frustum walk, each slot its (loose) frustum meets then tested per lane
+    /// ([`entered_slots`]), so that a subtree is entered only where some lane's own
+    /// slab test enters it (the hybrid packet walk). The lanes of a spread packet (a
+    /// curved mirror's) share no tight frustum, but still most of their nodes.
+    pub(crate) fn intersect_x8_hybrid<T: TriangleKernel>(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        octant: u32,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        let w = &self.wide;
+        if w.nodes.is_empty() || active.none() {
+            return;
+        }
+        let [o, d, inv] = r.rays();
+        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, w.diagonal)
+            .expect("an infinite spread takes every packet");
+        with_const!(
+            octant,
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            self.hybrid_walk_x8::<T>(r, active, &fr, hit, steps)
+        );
+    }
+
+    /// The tree part of [`Bvh::occluded_x8`] for a packet past the frustum's limit whose
+    /// lanes (`active`, finite) share the direction signs `octant`: the lanes blocked
+    /// with 0 < t < t_max, by the hybrid walk of [`Bvh::intersect_x8_hybrid`].
+    pub(crate) fn occluded_x8_hybrid<T: TriangleKernel>(
+        &self,
+        r: &RayPacket8,
+        active: Mask8,
+        octant: u32,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        let w = &self.wide;
+        if w.nodes.is_empty() || active.none() {
+            return Mask8::NONE;
+        }
+        let [o, d, inv] = r.rays();
+        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, w.diagonal)
+            .expect("an infinite spread takes every packet");
+        with_const!(
+            octant,
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            self.hybrid_occlusion_x8::<T>(r, active, &fr, t_max, steps)
+        )
+    }
+
     /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant.
     fn frustum_walk_x8<T: TriangleKernel, const OCT: u32>(
         &self,
@@ -498,12 +560,31 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        self.frustum_walk::<RayPacket8, T, OCT>(r, act, fr, hit, steps);
+        self.frustum_walk::<RayPacket8, T, OCT, false>(r, act, fr, hit, steps);
     }
 
-    /// The frustum walk of a packet (lanes `act`) of direction signs `OCT`, at any width.
+    /// The hybrid walk of eight lanes ([`Bvh::intersect_x8_hybrid`]), once per octant.
+    fn hybrid_walk_x8<T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &RayPacket8,
+        act: Mask8,
+        fr: &Frustum,
+        hit: &mut HitPacket8,
+        steps: &mut Steps,
+    ) {
+        self.frustum_walk::<RayPacket8, T, OCT, true>(r, act, fr, hit, steps);
+    }
+
+    /// The frustum walk of a packet (lanes `act`) of direction signs `OCT`, at any width;
+    /// with `PER_LANE`, each slot the frustum meets also tested per lane
+    /// ([`entered_slots`], [`Bvh::intersect_x8_hybrid`]).
     #[inline(always)]
-    pub(crate) fn frustum_walk<P: WidePacket, T: TriangleKernel, const OCT: u32>(
+    pub(crate) fn frustum_walk<
+        P: WidePacket,
+        T: TriangleKernel,
+        const OCT: u32,
+        const PER_LANE: bool,
+    >(
         &self,
         r: &P,
         act: Mask<P>,
@@ -521,6 +602,9 @@ impl Bvh {
                 let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
                 let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
+                if PER_LANE {
+                    bits = entered_slots(r, node, bits, act, P::hit_t(hit), true);
+                }
                 if bits != 0 {
                     let first = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
@@ -735,13 +819,32 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.frustum_occlusion::<RayPacket8, T, OCT>(r, act, fr, t_max, steps)
+        self.frustum_occlusion::<RayPacket8, T, OCT, false>(r, act, fr, t_max, steps)
+    }
+
+    /// The any-hit hybrid walk of eight lanes ([`Bvh::occluded_x8_hybrid`]), once per
+    /// octant.
+    fn hybrid_occlusion_x8<T: TriangleKernel, const OCT: u32>(
+        &self,
+        r: &RayPacket8,
+        act: Mask8,
+        fr: &Frustum,
+        t_max: f32x8,
+        steps: &mut Steps,
+    ) -> Mask8 {
+        self.frustum_occlusion::<RayPacket8, T, OCT, true>(r, act, fr, t_max, steps)
     }
 
     /// The any-hit frustum walk of a packet (lanes `act`) of direction signs `OCT`, at
-    /// any width: the lanes blocked with 0 < t < t_max.
+    /// any width: the lanes blocked with 0 < t < t_max. With `PER_LANE`, each slot the
+    /// frustum meets also tested per lane ([`entered_slots`]).
     #[inline(always)]
-    pub(crate) fn frustum_occlusion<P: WidePacket, T: TriangleKernel, const OCT: u32>(
+    pub(crate) fn frustum_occlusion<
+        P: WidePacket,
+        T: TriangleKernel,
+        const OCT: u32,
+        const PER_LANE: bool,
+    >(
         &self,
         r: &P,
         act: Mask<P>,
@@ -760,8 +863,8 @@ impl Bvh {
                 let node = &w.nodes[cur.child as usize];
                 steps.boxes += 1;
                 let (mut bits, near) = fr.test::<OCT>(&node.bounds, t_hi);
-                if P::LEAVES_PER_LANE {
-                    bits = entered_leaves(r, node, bits, left, t_max);
+                if PER_LANE || P::LEAVES_PER_LANE {
+                    bits = entered_slots(r, node, bits, left, t_max, PER_LANE);
                 }
                 WideBvh::push_any_hit(node, near, bits, false, Some((self, true)), &mut stack);
                 continue;
