@@ -2,18 +2,17 @@
 //! SAH cost once.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use octaray::bvh::Bvh;
 use octaray::bvh::bench::torus;
+use octaray::bvh::{BinaryStats, Bvh};
 use octaray::geometry::PrimSet;
 
 fn bench(c: &mut Criterion) {
     let tris = torus(250, 200);
-    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
+    let s = BinaryStats::of(&bvh.nodes);
     eprintln!(
         "build/torus100k: {} nodes, depth {}, SAH cost {:.2}",
-        bvh.nodes.len(),
-        bvh.depth(),
-        bvh.sah_cost()
+        s.nodes, s.depth, s.sah_cost
     );
     let mut g = c.benchmark_group("build");
     g.sample_size(10);

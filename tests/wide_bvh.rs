@@ -26,7 +26,7 @@ use octaray::bvh::bench::{incoherent_rays, primary_rays, torus};
 use octaray::bvh::traverse_x8::LANES_MIN_NODES;
 use octaray::bvh::wide::walk_x8::{FRUSTUM_SPREAD, LANES_SPREAD};
 use octaray::bvh::wide::{PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM};
-use octaray::bvh::{Bvh, Steps};
+use octaray::bvh::{BinaryStats, Bvh, Steps};
 use octaray::geometry::triangle::Watertight;
 use octaray::geometry::triangle::{TriRay8, Triangle8, Triangle32};
 use octaray::geometry::{Hit1, PrimKind, PrimSet, split_code};
@@ -201,7 +201,7 @@ fn signed_zero_rays(lo: Vec3, hi: Vec3, steps: usize) -> Vec<Ray1> {
 }
 
 fn torus_bvh() -> Bvh {
-    Bvh::build(PrimSet::from_triangles(torus(96, 48)))
+    Bvh::build_with_binary(PrimSet::from_triangles(torus(96, 48)))
 }
 
 #[test]
@@ -228,7 +228,7 @@ fn wide_equals_binary_on_a_torus_coherent() {
 #[test]
 fn wide_equals_binary_through_shared_edges_and_vertices() {
     let tris = torus(96, 48);
-    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
     let mut rng = Rng(13);
     let rays = edge_rays(
         &tris,
@@ -280,7 +280,7 @@ fn mixed_scene() -> Scene {
 #[test]
 fn wide_equals_binary_on_a_mixed_scene() {
     let scene = mixed_scene();
-    let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
+    let bvh = Bvh::build_with_binary(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
     let p = &bvh.prims;
     assert!(
         !p.spheres.is_empty()
@@ -363,7 +363,7 @@ fn wide_equals_binary_past_the_clamped_bounds() {
             Vec3::new(-1.0, 1.0, 5.0),
         ],
     };
-    let bvh = Bvh::build(PrimSet::from_triangles(vec![far, near]));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(vec![far, near]));
     assert!(
         bvh.prims.blocks.iter().any(|b| !b.one_leaf),
         "the two triangles share a block of two binary leaves"
@@ -396,7 +396,7 @@ fn wide_equals_binary_past_the_clamped_bounds() {
 
 #[test]
 fn nan_rays_never_hit() {
-    let bvh = Bvh::build(PrimSet::from_scene(&mixed_scene(), DVec3::ZERO));
+    let bvh = Bvh::build_with_binary(PrimSet::from_scene(&mixed_scene(), DVec3::ZERO));
     let big = torus_bvh();
     let mut steps = Steps::default();
     for (o, d) in [
@@ -433,14 +433,14 @@ fn nan_rays_never_hit() {
 fn only_trees_past_the_prefetch_size_prefetch() {
     let big = torus_bvh();
     assert!(big.walked_bytes() > PREFETCH_FROM && big.wide.prefetches);
-    let small = Bvh::build(PrimSet::from_triangles(torus(24, 12)));
+    let small = Bvh::build_with_binary(PrimSet::from_triangles(torus(24, 12)));
     assert!(small.walked_bytes() <= PREFETCH_FROM && !small.wide.prefetches);
-    assert!(!Bvh::build(PrimSet::default()).wide.prefetches);
+    assert!(!Bvh::build_with_binary(PrimSet::default()).wide.prefetches);
 }
 
 #[test]
 fn empty_tree_has_no_wide_nodes_and_misses() {
-    let bvh = Bvh::build(PrimSet::default());
+    let bvh = Bvh::build_with_binary(PrimSet::default());
     assert!(bvh.wide.nodes.is_empty());
     let r = Ray1::new(Vec3::ZERO, Vec3::Z);
     let mut steps = Steps::default();
@@ -452,7 +452,7 @@ fn empty_tree_has_no_wide_nodes_and_misses() {
 fn every_triangle_is_in_exactly_one_block_lane() {
     // large enough (> 4 MiB of blocks) for the huge-page copy of the block array
     let tris = torus(320, 160);
-    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
     assert!(bvh.prims.blocks.len() * std::mem::size_of_val(&bvh.prims.blocks[0]) > 4 << 20);
     let n = tris.len();
     let mut seen = vec![0u32; n];
@@ -490,7 +490,7 @@ fn every_triangle_is_in_exactly_one_block_lane() {
         got == want,
         "the blocks hold other triangles than the mesh's"
     );
-    assert!(bvh.wide.depth() <= bvh.depth());
+    assert!(bvh.wide.depth() <= BinaryStats::of(&bvh.nodes).depth);
 }
 
 /// Triangles and rays for the kernel test: torus triangles and random ones, rays aimed
@@ -778,6 +778,70 @@ fn compare_packets_at(
     (tally, sx, sxb)
 }
 
+/// `Bvh::build` keeps the binary tree only where packets walk it: a torus's goes in
+/// the collapse, and every query (single rays and packets, closest and any hit) gets
+/// the answers of the tree that keeps it; a few triangles' stays (their wide tree is
+/// too small for the packet walks); and the binary walks refuse a tree without it.
+#[test]
+fn the_binary_tree_stays_only_where_packets_walk_it() {
+    let tris = torus(96, 48);
+    let with = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
+    let bvh = Bvh::build(PrimSet::from_triangles(tris));
+    assert!(bvh.nodes.is_empty() && !bvh.packets_walk_binary() && !with.nodes.is_empty());
+    assert_eq!(bvh.root.map(|r| r.bounds()), with.root.map(|r| r.bounds()));
+    assert_eq!(bvh.validate(), Ok(()));
+    let mut rng = Rng(41);
+    let mut steps = Steps::default();
+    let (mut lanes, mut hits) = (0, 0);
+    for rays in [primary_rays(64, 64), incoherent_rays(4096, 7)] {
+        let rays = rays_of(&rays);
+        for chunk in rays.chunks(8) {
+            let o: [Vec3; 8] = std::array::from_fn(|l| chunk[l % chunk.len()].origin);
+            let d: [Vec3; 8] = std::array::from_fn(|l| chunk[l % chunk.len()].dir);
+            let p = RayPacket8::new(Vec3x8::from_lanes(&o), Vec3x8::from_lanes(&d), Mask8::ALL);
+            let t0 = f32x8::splat(f32::INFINITY);
+            let (mut a, mut b) = (HitPacket8::new(t0), HitPacket8::new(t0));
+            bvh.intersect_x8::<Watertight>(&p, Mask8::ALL, &mut a, &mut steps);
+            with.intersect_x8::<Watertight>(&p, Mask8::ALL, &mut b, &mut steps);
+            let t_max = f32x8::new(std::array::from_fn(|_| rng.range(0.1, 4.0) as f32));
+            let occ = bvh.occluded_x8::<Watertight>(&p, Mask8::ALL, t_max, &mut steps);
+            let occ_w = with.occluded_x8::<Watertight>(&p, Mask8::ALL, t_max, &mut steps);
+            for l in 0..8 {
+                let r = p.ray(l);
+                let (mut h, mut hw) = (Hit1::new(f32::INFINITY), Hit1::new(f32::INFINITY));
+                bvh.intersect_1::<Watertight>(&r, &mut h, &mut steps);
+                with.intersect_1::<Watertight>(&r, &mut hw, &mut steps);
+                let tm = t_max.to_array()[l];
+                let lane = |h: &HitPacket8| (h.t.to_array()[l].to_bits(), h.prim_lane(l));
+                assert_eq!(lane(&a), lane(&b), "lane {l} of {r:?}");
+                assert_eq!(occ.lane(l), occ_w.lane(l), "lane {l} of {r:?}");
+                assert_eq!((h.t.to_bits(), h.prim), (hw.t.to_bits(), hw.prim), "{r:?}");
+                assert_eq!(
+                    bvh.occluded_1::<Watertight>(&r, tm, &mut steps),
+                    with.occluded_1::<Watertight>(&r, tm, &mut steps)
+                );
+                lanes += 1;
+                hits += h.is_hit() as usize;
+            }
+        }
+    }
+    assert!(hits > lanes / 4, "{hits} hits of {lanes} rays");
+    let small = Bvh::build(PrimSet::from_triangles(torus(6, 4)));
+    assert!(small.packets_walk_binary() && !small.nodes.is_empty());
+    let r = Ray1::new(
+        Vec3::new(0.0, 0.0, 5.0),
+        Vec3::new(0.01, 0.02, -1.0).normalize(),
+    );
+    let refused = std::panic::catch_unwind(|| {
+        bvh.intersect_1_binary::<Watertight>(
+            &r,
+            &mut Hit1::new(f32::INFINITY),
+            &mut Steps::default(),
+        )
+    });
+    assert!(refused.is_err(), "a binary walk without the binary tree");
+}
+
 /// Packets past the frustum's limit whose lanes share their direction signs within
 /// `LANES_SPREAD` (a curved mirror's: origins a millimetre apart, directions 0.03 to
 /// 0.19 rad apart) take the hybrid walk of the wide tree: every lane gets what the
@@ -943,7 +1007,7 @@ fn walks_as_its_lanes(bvh: &Bvh, rays: &[Ray1]) {
 #[test]
 fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds() {
     let tris = torus(96, 48);
-    let bvh = Bvh::build(PrimSet::from_triangles(tris.clone()));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
     let mut rng = Rng(23);
     let (lo, hi) = (Vec3::new(-2.0, -1.5, -2.0), Vec3::new(2.0, 1.5, 2.0));
     let edges = edge_rays(&tris, 16_000, lo, hi, &mut rng);
@@ -985,7 +1049,7 @@ fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds()
     }
     // every kind, exact ties between duplicated objects, the list beside the tree
     let scene = mixed_scene();
-    let bvh = Bvh::build(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
+    let bvh = Bvh::build_with_binary(PrimSet::from_scene(&scene, DVec3::new(0.0, 0.0, 20.0)));
     let (lo, hi) = (
         Vec3::new(-100.0, -100.0, -20.0),
         Vec3::new(80.0, 80.0, 50.0),
@@ -1043,7 +1107,7 @@ fn packet_walks_equal_binary_through_shared_edges_signed_zeros_and_mixed_kinds()
 fn packets_bounded_by_the_floor_get_the_unbounded_hits() {
     let mut prims = PrimSet::from_triangles(torus(96, 48));
     prims.floor = Some(octaray::geometry::floor::Floor32::new(DVec3::ZERO));
-    let floor = Bvh::build(prims);
+    let floor = Bvh::build_with_binary(prims);
     let bare = torus_bvh();
     let rays = rays_of(&primary_rays(128, 128));
     // lanes 3 and 6 start from a finite bound: one short of most hits, one beyond them
@@ -1158,7 +1222,7 @@ fn origins_differing_in_a_zeros_sign_keep_each_lanes_bits() {
             ],
         });
     }
-    let bvh = Bvh::build(PrimSet::from_triangles(tris));
+    let bvh = Bvh::build_with_binary(PrimSet::from_triangles(tris));
     assert!(!bvh.wide.nodes.is_empty());
     for (first, rest) in [(0.0f32, -0.0f32), (-0.0, 0.0)] {
         let mut o = [Vec3::new(rest, 0.0, 5.0); 8];
@@ -1223,8 +1287,8 @@ fn stream_as_single_queries(bvh: &Bvh, rays: &[Ray1], t_max: &[f32]) -> usize {
 #[test]
 fn streams_give_every_ray_what_single_queries_give_it() {
     let tris = torus(96, 48);
-    let big = Bvh::build(PrimSet::from_triangles(tris.clone()));
-    let mixed = Bvh::build(PrimSet::from_scene(
+    let big = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
+    let mixed = Bvh::build_with_binary(PrimSet::from_scene(
         &mixed_scene(),
         DVec3::new(0.0, 0.0, 20.0),
     ));
@@ -1236,7 +1300,7 @@ fn streams_give_every_ray_what_single_queries_give_it() {
     let floor_only = {
         let mut scene = mixed_scene();
         scene.objects.clear();
-        Bvh::build(PrimSet::from_scene(&scene, DVec3::ZERO))
+        Bvh::build_with_binary(PrimSet::from_scene(&scene, DVec3::ZERO))
     };
     assert!(floor_only.prims.floor.is_some() && floor_only.wide.nodes.is_empty());
     let stepped = |b: &Bvh| {
@@ -1307,7 +1371,7 @@ fn streams_give_every_ray_what_single_queries_give_it() {
 fn streams_step_only_in_trees_past_their_sizes() {
     for bvh in [
         torus_bvh(),
-        Bvh::build(PrimSet::from_triangles(torus(400, 100))),
+        Bvh::build_with_binary(PrimSet::from_triangles(torus(400, 100))),
     ] {
         let bytes = bvh.walked_bytes();
         assert_eq!(bvh.wide.stream_steps, bytes >= STREAM_FROM, "{bytes} B");
@@ -1317,11 +1381,11 @@ fn streams_step_only_in_trees_past_their_sizes() {
             "{bytes} B"
         );
     }
-    let big = Bvh::build(PrimSet::from_triangles(torus(400, 100)));
+    let big = Bvh::build_with_binary(PrimSet::from_triangles(torus(400, 100)));
     assert!(
         big.wide.stream_steps,
         "80k triangles walk {} B",
         big.walked_bytes()
     );
-    assert!(!Bvh::build(PrimSet::default()).wide.stream_steps);
+    assert!(!Bvh::build_with_binary(PrimSet::default()).wide.stream_steps);
 }

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use wide::f32x8;
 
 use super::wide::WideBvh;
-use super::{Bvh, Steps};
+use super::{BinaryStats, Bvh, Steps};
 use crate::geometry::triangle::Triangle32;
 use crate::geometry::triangle::Watertight;
 use crate::geometry::{Hit1, PrimSet};
@@ -747,15 +747,18 @@ impl AccelBytes {
 }
 
 /// A BVH built best of 3: the tree, the best time of the whole build and of its
-/// collapse to the 8-wide tree (ms).
+/// collapse to the 8-wide tree (ms), and the binary tree's figures (taken before the
+/// collapse, which drops it unless kept).
 pub struct Built {
     pub bvh: Bvh,
     pub build_ms: f64,
     pub collapse_ms: f64,
+    pub binary: BinaryStats,
 }
 
-/// Builds the BVH best of 3 (as [`Bvh::build`], timed in its two parts: the binary
-/// tree, then its collapse), the first over `prims`, the others over what `reload`
+/// Builds the BVH best of 3 (as [`Bvh::build`], or [`Bvh::build_with_binary`] with
+/// `keep_binary`; timed in its two parts: the binary tree, then its collapse), the
+/// first over `prims`, the others over what `reload`
 /// gives (the same mesh read again, untimed). Each build drops the tree before it
 /// first and takes its triangles: no copy of the mesh or second tree stays beside the
 /// one being built (a copy of torus1m's triangles kept for the next build would add
@@ -763,9 +766,11 @@ pub struct Built {
 pub fn timed_build<E>(
     prims: PrimSet,
     mut reload: impl FnMut() -> Result<PrimSet, E>,
+    keep_binary: bool,
 ) -> Result<Built, E> {
     let (mut build_ms, mut collapse_ms) = (f64::INFINITY, f64::INFINITY);
     let mut bvh = None;
+    let mut binary = BinaryStats::default();
     let mut first = Some(prims);
     for _ in 0..3 {
         // the previous tree goes before this one's input is read and built
@@ -777,11 +782,20 @@ pub fn timed_build<E>(
         let start = Instant::now();
         let (nodes, order) = super::build::build(&mut prims);
         let built = Instant::now();
-        let wide = WideBvh::collapse(&nodes, &mut prims, order);
+        // (untimed)
+        binary = BinaryStats::of(&nodes);
+        let root = nodes.first().copied();
+        let resumed = Instant::now();
+        let (wide, nodes) = WideBvh::collapse(nodes, &mut prims, order, keep_binary);
         let end = Instant::now();
-        build_ms = build_ms.min((end - start).as_secs_f64() * 1e3);
-        collapse_ms = collapse_ms.min((end - built).as_secs_f64() * 1e3);
-        bvh = Some(Bvh { nodes, prims, wide });
+        build_ms = build_ms.min((built - start + (end - resumed)).as_secs_f64() * 1e3);
+        collapse_ms = collapse_ms.min((end - resumed).as_secs_f64() * 1e3);
+        bvh = Some(Bvh {
+            nodes,
+            root,
+            prims,
+            wide,
+        });
     }
     let bvh = bvh.expect("three builds");
     #[cfg(debug_assertions)]
@@ -792,6 +806,7 @@ pub fn timed_build<E>(
         bvh,
         build_ms,
         collapse_ms,
+        binary,
     })
 }
 
@@ -895,46 +910,6 @@ pub fn run(
             "octaray mesh: {name}: load_ms={load_ms:.1} ({how}), {vertices} vertices, {faces} triangles, {dropped} dropped as degenerate{}",
             peak()
         );
-        let Built {
-            bvh,
-            build_ms,
-            collapse_ms,
-        } = timed_build(prims, || {
-            Ok::<_, ObjError>(mesh_prims(load_obj_cached(mesh, cache.as_deref())?.0))
-        })?;
-        let ntris = faces;
-        let _ = writeln!(
-            log,
-            "octaray bvh: build_ms={build_ms:.1} (best of 3), {} nodes, depth {}, SAH cost {:.2}",
-            bvh.nodes.len(),
-            bvh.depth(),
-            bvh.sah_cost(),
-        );
-        let (w, blocks) = (&bvh.wide, &bvh.prims.blocks);
-        let lanes: u64 = blocks.iter().map(|b| b.count as u64).sum();
-        let one_leaf = blocks.iter().filter(|b| b.one_leaf).count();
-        let _ = writeln!(
-            log,
-            "octaray wide bvh: collapse_ms={collapse_ms:.1} (of build_ms), {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
-            w.nodes.len(),
-            w.depth(),
-            blocks.len(),
-            lanes as f64 / blocks.len().max(1) as f64,
-            100.0 * one_leaf as f64 / blocks.len().max(1) as f64
-        );
-        let bytes = AccelBytes::of(&bvh);
-        let per = |b: usize| b as f64 / ntris.max(1) as f64;
-        let _ = writeln!(
-            log,
-            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}, wide nodes {:.1}, triangle blocks {:.1}, their leaf boxes {:.1}, object indices {:.1}{}",
-            per(bytes.total()),
-            per(bytes.binary_nodes),
-            per(bytes.wide_nodes),
-            per(bytes.wide_blocks),
-            per(bytes.leaf_boxes),
-            per(bytes.prims),
-            peak()
-        );
         let mut runs = Vec::new();
         // OCTARAY_BENCH_ONLY=primary/8 (rays/mode, either part optional; rays may be a
         // shadow set, `primary.shadow`): only those lines, for profiling
@@ -951,10 +926,74 @@ pub fn run(
                 Mode::Stream,
                 Mode::SingleBinary,
             ])
+            .filter(|m| only_mode.is_empty() || only_mode == m.label())
             .collect::<Vec<_>>();
-        let modes = modes
+        // the binary tree stays for the binary modes only (the renderer drops it)
+        let binary_modes = modes
             .iter()
-            .filter(|m| only_mode.is_empty() || only_mode == m.label());
+            .any(|m| matches!(m, Mode::Packet8Binary | Mode::SingleBinary));
+        let Built {
+            bvh,
+            build_ms,
+            collapse_ms,
+            binary,
+        } = timed_build(
+            prims,
+            || Ok::<_, ObjError>(mesh_prims(load_obj_cached(mesh, cache.as_deref())?.0)),
+            binary_modes,
+        )?;
+        let ntris = faces;
+        let _ = writeln!(
+            log,
+            "octaray bvh: build_ms={build_ms:.1} (best of 3), {} binary nodes (kept {}), depth {}, SAH cost {:.2}",
+            binary.nodes,
+            if !bvh.nodes.is_empty() {
+                "for the binary modes"
+            } else {
+                "until the collapse"
+            },
+            binary.depth,
+            binary.sah_cost,
+        );
+        let (w, blocks) = (&bvh.wide, &bvh.prims.blocks);
+        let lanes: u64 = blocks.iter().map(|b| b.count as u64).sum();
+        let one_leaf = blocks.iter().filter(|b| b.one_leaf).count();
+        let _ = writeln!(
+            log,
+            "octaray wide bvh: collapse_ms={collapse_ms:.1} (of build_ms), {} nodes, depth {}, {} triangle blocks ({:.1} of 8 lanes used, {:.0} % of one binary leaf)",
+            w.nodes.len(),
+            w.depth(),
+            blocks.len(),
+            lanes as f64 / blocks.len().max(1) as f64,
+            100.0 * one_leaf as f64 / blocks.len().max(1) as f64
+        );
+        let mut bytes = AccelBytes::of(&bvh);
+        let per = |b: usize| b as f64 / ntris.max(1) as f64;
+        // what the renderer keeps: a binary tree here only for the binary modes is not
+        let binary_here = if bvh.packets_walk_binary() {
+            0
+        } else {
+            std::mem::take(&mut bytes.binary_nodes)
+        };
+        let _ = writeln!(
+            log,
+            "octaray memory: {:.1} bytes per triangle kept for tracing: binary nodes {:.1}{}, wide nodes {:.1}, triangle blocks {:.1}, their leaf boxes {:.1}, object indices {:.1}{}",
+            per(bytes.total()),
+            per(bytes.binary_nodes),
+            if binary_here > 0 {
+                format!(
+                    " (and {:.1} kept for the binary modes only)",
+                    per(binary_here)
+                )
+            } else {
+                String::new()
+            },
+            per(bytes.wide_nodes),
+            per(bytes.wide_blocks),
+            per(bytes.leaf_boxes),
+            per(bytes.prims),
+            peak()
+        );
         let wanted = |name: &str| only_rays.is_empty() || only_rays == name;
         let mut line = |rays: &'static str, n: usize, mode: Mode, r: (f64, f64, f64, Steps)| {
             let (trace_ms, hits, mean_t, steps) = r;
@@ -1008,7 +1047,7 @@ pub fn run(
             };
             let mut t = vec![0.0f32; rays.origin.len()];
             if wanted(set) {
-                for &mode in modes.clone() {
+                for &mode in &modes {
                     let r = timed_trace(&bvh, &rays, mode, reps, &mut t);
                     line(rays.name, rays.origin.len(), mode, r);
                 }
@@ -1021,7 +1060,7 @@ pub fn run(
                 let mut blocked = vec![0u8; set.t_max.len()];
                 // (`mode=64` traces shadow rays 16 at a time: the any-hit walk of 64 as
                 // one ran 0.7–0.8 of it, benches/README.md)
-                for &mode in modes.clone().filter(|m| !matches!(m, Mode::Packet64(_))) {
+                for &mode in modes.iter().filter(|m| !matches!(m, Mode::Packet64(_))) {
                     let r = timed_occluded(&bvh, &set, mode, reps, &mut blocked);
                     line(set.rays.name, n, mode, r);
                 }
@@ -1107,21 +1146,47 @@ mod tests {
     fn timed_builds_read_the_mesh_again_and_return_the_tree_of_one_build() {
         let tris = torus(30, 20);
         let mut reads = 0;
-        let built = timed_build(PrimSet::from_triangles(tris.clone()), || {
-            reads += 1;
+        let reload = |reads: &mut usize| {
+            *reads += 1;
             Ok::<_, &str>(PrimSet::from_triangles(tris.clone()))
-        })
+        };
+        let built = timed_build(
+            PrimSet::from_triangles(tris.clone()),
+            || reload(&mut reads),
+            false,
+        )
         .unwrap();
         assert_eq!(reads, 2);
         let one = Bvh::build(PrimSet::from_triangles(tris.clone()));
         let packed = |b: &Bvh| b.prims.each_triangle().collect::<Vec<_>>();
         assert_eq!(packed(&built.bvh), packed(&one));
         assert_eq!(built.bvh.nodes.len(), one.nodes.len());
+        let root_box = |b: &Bvh| b.root.map(|r| r.bounds());
+        assert_eq!(root_box(&built.bvh), root_box(&one));
         assert_eq!(built.bvh.prims.blocks.len(), one.prims.blocks.len());
         assert!(built.build_ms >= built.collapse_ms && built.collapse_ms >= 0.0);
-        let failed = timed_build(PrimSet::from_triangles(tris), || {
-            Err::<PrimSet, _>("the mesh is gone")
-        });
+        // the binary tree's figures whether it stays or not (its node count may differ
+        // by the pad that puts children pairs on cache lines, which depends on where
+        // the array lies); kept, it is the tree a build that keeps it keeps
+        let with = Bvh::build_with_binary(PrimSet::from_triangles(tris.clone()));
+        assert!(!with.nodes.is_empty() && one.nodes.is_empty());
+        let same = |a: BinaryStats, b: BinaryStats| {
+            a.depth == b.depth && a.sah_cost == b.sah_cost && a.nodes.abs_diff(b.nodes) <= 1
+        };
+        assert!(same(built.binary, BinaryStats::of(&with.nodes)));
+        let kept = timed_build(
+            PrimSet::from_triangles(tris.clone()),
+            || reload(&mut reads),
+            true,
+        )
+        .unwrap();
+        assert!(same(kept.binary, BinaryStats::of(&kept.bvh.nodes)));
+        assert!(same(kept.binary, built.binary));
+        let failed = timed_build(
+            PrimSet::from_triangles(tris),
+            || Err::<PrimSet, _>("the mesh is gone"),
+            false,
+        );
         assert_eq!(failed.err(), Some("the mesh is gone"));
     }
 

@@ -39,6 +39,7 @@ pub use node::BvhNode;
 pub use slot::Slot;
 
 use crate::geometry::{PrimKind, PrimSet};
+use wide::walk_x8::WIDE_PACKET_MIN_NODES;
 
 /// Depth limit of the traversal stacks; the builder keeps the tree below it (SAH
 /// splits to depth 48, then halvings: at most 48 + 28 levels for 2²⁸ primitives).
@@ -69,7 +70,15 @@ impl Steps {
 /// A BVH over a primitive set, with the unbounded primitives beside it.
 #[derive(Clone, Debug)]
 pub struct Bvh {
+    /// The binary tree. Kept where packets walk it (a wide tree of fewer than
+    /// [`WIDE_PACKET_MIN_NODES`] nodes) or when asked for ([`Bvh::build_with_binary`]:
+    /// the benches' binary modes, the tests' oracle); else empty, every query then
+    /// through the wide tree. It goes inside the collapse, before the blocks are
+    /// written ([`wide::WideBvh::collapse`]).
     pub nodes: Vec<BvhNode>,
+    /// The binary tree's root, kept with or without the tree: its box is every packet
+    /// walk's first test ([`Bvh::enter_x8`]). `None` for a tree of nothing.
+    pub root: Option<BvhNode>,
     pub prims: PrimSet,
     /// The same tree collapsed to 8 children per node, for single rays.
     pub wide: wide::WideBvh,
@@ -78,26 +87,78 @@ pub struct Bvh {
 impl Bvh {
     /// Builds the tree (binned SAH) over the bounded primitives of `prims`,
     /// reordering them into leaf order (the triangles into blocks of eight,
-    /// `PrimSet::blocks`). Validated in debug builds.
-    pub fn build(mut prims: PrimSet) -> Bvh {
+    /// `PrimSet::blocks`), and keeps the binary tree only where packets walk it.
+    /// Validated in debug builds.
+    pub fn build(prims: PrimSet) -> Bvh {
+        Self::build_keeping(prims, false)
+    }
+
+    /// [`Bvh::build`], keeping the binary tree whatever the wide tree's size, for its
+    /// walks (`intersect_1_binary`, `intersect_x8_binary` and their any-hit twins).
+    pub fn build_with_binary(prims: PrimSet) -> Bvh {
+        Self::build_keeping(prims, true)
+    }
+
+    fn build_keeping(mut prims: PrimSet, keep_binary: bool) -> Bvh {
         let (nodes, order) = build::build(&mut prims);
-        let wide = wide::WideBvh::collapse(&nodes, &mut prims, order);
-        let bvh = Bvh { nodes, prims, wide };
+        let root = nodes.first().copied();
+        // (a debug build keeps the binary tree until it is validated)
+        let keep = keep_binary || cfg!(debug_assertions);
+        let (wide, nodes) = wide::WideBvh::collapse(nodes, &mut prims, order, keep);
+        #[allow(unused_mut)]
+        let mut bvh = Bvh {
+            nodes,
+            root,
+            prims,
+            wide,
+        };
         #[cfg(debug_assertions)]
-        if let Err(e) = bvh.validate() {
-            panic!("BVH invariant broken: {e}");
+        {
+            if let Err(e) = bvh.validate() {
+                panic!("BVH invariant broken: {e}");
+            }
+            if !keep_binary && !bvh.packets_walk_binary() {
+                bvh.nodes = Vec::new();
+            }
         }
         bvh
     }
 
-    /// The SAH cost of the tree: Σ over nodes of A(node)/A(root) times
-    /// C_T for an interior node and C_I · n for a leaf (C_I = 1).
-    pub fn sah_cost(&self) -> f64 {
-        let Some(root) = self.nodes.first() else {
-            return 0.0;
+    /// Whether packets walk the binary tree ([`Bvh::intersect_x8`]): in a tree whose
+    /// wide one is too small for the packet walks.
+    pub fn packets_walk_binary(&self) -> bool {
+        self.wide.nodes.len() < WIDE_PACKET_MIN_NODES
+    }
+
+    /// Panics unless the binary tree is here for its walks (a tree of nothing has none
+    /// to walk).
+    #[inline]
+    fn binary_walked(&self) {
+        assert!(
+            !self.nodes.is_empty() || self.root.is_none(),
+            "the binary walks need the binary tree (Bvh::build_with_binary)"
+        );
+    }
+}
+
+/// Size, depth and SAH cost of a binary tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BinaryStats {
+    pub nodes: usize,
+    /// Of the deepest leaf (root = 1).
+    pub depth: usize,
+    /// Σ over nodes of A(node)/A(root) times C_T for an interior node and C_I · n for
+    /// a leaf (C_I = 1).
+    pub sah_cost: f64,
+}
+
+impl BinaryStats {
+    pub fn of(nodes: &[BvhNode]) -> BinaryStats {
+        let Some(root) = nodes.first() else {
+            return BinaryStats::default();
         };
         let ra = root.bounds().area().max(f32::MIN_POSITIVE) as f64;
-        self.nodes
+        let sah_cost = nodes
             .iter()
             .map(|n| {
                 let w = n.bounds().area() as f64 / ra;
@@ -107,23 +168,19 @@ impl Bvh {
                     w * build::C_TRAVERSE as f64
                 }
             })
-            .sum()
-    }
-
-    /// Depth of the deepest leaf (root = 1).
-    pub fn depth(&self) -> usize {
-        fn go(b: &Bvh, i: usize) -> usize {
-            let n = &b.nodes[i];
+            .sum();
+        fn depth(nodes: &[BvhNode], i: usize) -> usize {
+            let n = &nodes[i];
             if n.is_leaf() {
                 1
             } else {
-                1 + go(b, n.first as usize).max(go(b, n.first as usize + 1))
+                1 + depth(nodes, n.first as usize).max(depth(nodes, n.first as usize + 1))
             }
         }
-        if self.nodes.is_empty() {
-            0
-        } else {
-            go(self, 0)
+        BinaryStats {
+            nodes: nodes.len(),
+            depth: depth(nodes, 0),
+            sah_cost,
         }
     }
 }

@@ -20,6 +20,7 @@ impl Bvh {
         hit: &mut Hit1,
         steps: &mut Steps,
     ) {
+        self.binary_walked();
         if let Some(root) = self.nodes.first() {
             steps.boxes += 1;
             if root.intersect_1(r, hit.t).is_some() {
@@ -89,6 +90,7 @@ impl Bvh {
         t_max: f32,
         steps: &mut Steps,
     ) -> bool {
+        self.binary_walked();
         if self.occluded_beside_1::<T>(r, t_max, steps) {
             return true;
         }

@@ -155,7 +155,7 @@ impl Bvh {
     /// scene with a floor and a tree to skip.
     #[inline]
     pub(crate) fn bounds_by_floor(&self) -> bool {
-        self.prims.floor.is_some() && !self.nodes.is_empty()
+        self.prims.floor.is_some() && self.root.is_some()
     }
 
     /// Whether lanes `how_far` apart (as [`Frustum::new`](super::wide::walk_x8) measures
@@ -235,8 +235,8 @@ impl Bvh {
     /// binary root); not counted in `Steps::boxes` (wide node tests).
     #[inline(always)]
     pub(crate) fn enter_x8(&self, r: &RayPacket8, active: Mask8, t_max: f32x8) -> Mask8 {
-        debug_assert!(!self.nodes.is_empty(), "a tree with a root");
-        self.nodes[0].intersect_x8(r, active, t_max)
+        let root = self.root.as_ref().expect("a tree with a root");
+        root.intersect_x8(r, active, t_max)
     }
 
     /// [`Bvh::intersect_x8`] per lane: each lane of `active` gets what
@@ -315,6 +315,7 @@ impl Bvh {
         if active.none() {
             return;
         }
+        self.binary_walked();
         if !self.nodes.is_empty() {
             // the octant shared by every active lane, if any (1/d carries the sign of
             // the direction, −0 included)
@@ -613,7 +614,8 @@ impl Bvh {
         } else if let Some(Err(_)) = packet {
             let [blocked] = self.occluded_lanes_of::<T, 1>([r], [left], [t_max], false, steps);
             left = left.and_not(blocked);
-        } else if !self.nodes.is_empty() && left.any() {
+        } else if left.any() && self.root.is_some() {
+            self.binary_walked();
             let mut stack = Stack::<u32, STACK_SIZE>::new();
             stack.push(0);
             while let Some(ni) = stack.pop() {

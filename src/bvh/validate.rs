@@ -32,11 +32,21 @@ impl Bvh {
         }
         triangle_store(p)?;
         let total: usize = PrimKind::BVH_KINDS.iter().map(|&k| p.len(k)).sum();
+        if (total == 0) != self.root.is_none() {
+            return Err(format!("{total} primitives, root {:?}", self.root));
+        }
+        if self.nodes.first().is_some_and(|n| Some(*n) != self.root) {
+            return Err("the root kept is not the binary tree's".into());
+        }
         if self.nodes.is_empty() {
-            return if total == 0 {
-                Ok(())
+            // no tree, or the binary tree gone where every walk takes the wide one
+            // (whose checks reach every primitive)
+            return if total > 0 && self.packets_walk_binary() {
+                Err(format!(
+                    "{total} primitives but no binary tree for the packets"
+                ))
             } else {
-                Err(format!("{total} primitives but no nodes"))
+                Ok(())
             };
         }
         let mut seen = marks(p);
@@ -209,7 +219,7 @@ impl Bvh {
                 w.leaf_boxes.len()
             ));
         }
-        if self.nodes.is_empty() {
+        if self.root.is_none() {
             return if w.nodes.is_empty() && p.blocks.is_empty() {
                 Ok(())
             } else {

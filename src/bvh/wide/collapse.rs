@@ -10,6 +10,7 @@
 
 use wide::f32x8;
 
+use super::walk_x8::WIDE_PACKET_MIN_NODES;
 use super::{
     MERGE_MAX, PREFETCH_FROM, STREAM_ANY_HIT_FROM, STREAM_FROM, TriBlock, WideBvh, WideNode,
     walked_bytes,
@@ -185,19 +186,28 @@ impl WideBvh {
     /// Collapses the binary tree `nodes` over `prims` (in leaf order, but for the
     /// triangles, whose leaf order is `order`: [`build`](crate::bvh::build::build)) into
     /// the wide tree, and packs the triangles into their blocks
-    /// ([`PrimSet::pack_triangles`]), the one copy of them the trees keep.
+    /// ([`PrimSet::pack_triangles`]), the one copy of them the trees keep. Returns the
+    /// binary tree too when `keep_binary` or when the wide tree is too small for the
+    /// packet walks ([`WIDE_PACKET_MIN_NODES`]: its packets walk the binary tree), else
+    /// an empty one: it goes as soon as the blocks' leaf boxes are taken from it, before
+    /// the blocks are written, so that the two never take memory at once.
     ///
-    /// Four passes: subtree spans bottom-up (one sweep over the binary nodes); the
+    /// Five passes: subtree spans bottom-up (one sweep over the binary nodes); the
     /// [`plan`] (one walk in post order); the wide nodes top-down by the plan, which
-    /// counts the triangle blocks; the blocks in leaf order, written once into an array
-    /// of exactly that size (no growth, no copy), each triangle read once from
-    /// `prims` ([`PrimSet::triangle`]).
-    pub fn collapse(nodes: &[BvhNode], prims: &mut PrimSet, order: Vec<u32>) -> WideBvh {
+    /// counts the triangle blocks; the leaf boxes of the blocks in leaf order; the
+    /// blocks, each triangle read once from `prims` ([`PrimSet::triangle`]). Each array
+    /// is written once at exactly its size (no growth, no copy).
+    pub fn collapse(
+        nodes: Vec<BvhNode>,
+        prims: &mut PrimSet,
+        order: Vec<u32>,
+        keep_binary: bool,
+    ) -> (WideBvh, Vec<BvhNode>) {
         let mut w = WideBvh::default();
         if nodes.is_empty() {
             // no triangle, but perhaps a mesh's vertices, all its triangles dropped
             prims.pack_triangles(Vec::new());
-            return w;
+            return (w, nodes);
         }
         w.diagonal = {
             let d = nodes[0].bounds();
@@ -234,7 +244,7 @@ impl WideBvh {
             };
         }
         // a binary node can be a leaf slot when it is a leaf or a small enough run
-        let plan = plan(nodes, |i| {
+        let plan = plan(&nodes, |i| {
             (span[i].slot).filter(|s| nodes[i].is_leaf() || s.count() <= MERGE_MAX)
         });
         // top-down: the wide nodes; triangle leaf slots get their block index now and
@@ -249,7 +259,7 @@ impl WideBvh {
         let root = if plan[0][0] == LEAF {
             ([0; 8], 1)
         } else {
-            wide_slots(nodes, &plan, 0)
+            wide_slots(&nodes, &plan, 0)
         };
         work.push((0, root.0, root.1));
         while let Some((wi, kids, n)) = work.pop() {
@@ -269,7 +279,7 @@ impl WideBvh {
                     w.nodes.push(WideNode::empty());
                     node.slot[slot] = Slot::INTERIOR;
                     node.child[slot] = ci;
-                    let (kids, n) = wide_slots(nodes, &plan, k);
+                    let (kids, n) = wide_slots(&nodes, &plan, k);
                     work.push((ci, kids, n));
                 } else {
                     let s = span[k as usize];
@@ -304,13 +314,41 @@ impl WideBvh {
             w.nodes[t.wide as usize].child[t.slot as usize] = b0;
             b0 += t.count.div_ceil(8);
         }
-        let mut blocks = huge_vec(n_blocks as usize);
+        // the leaf boxes, the last use of the binary tree
         w.leaf_boxes = huge_vec(n_blocks as usize);
+        let mut one_leaf = Vec::with_capacity(tri_slots.len());
         for (i, &t) in tri_slots.iter().enumerate() {
-            // a few slots ahead: their binary node (its subtree's boxes) and their
-            // triangles' corner indices
+            // a few slots ahead, their binary node, and a merged subtree's nodes: the
+            // builder allocates a subtree depth first, so its 2·leaves − 2 descendants
+            // follow `first` contiguously (a hint only: another order costs time, not
+            // results)
             if let Some(a) = tri_slots.get(i + 4) {
                 prefetch_lines(&nodes[a.node as usize]);
+            }
+            if let Some(a) = tri_slots.get(i + 2) {
+                let r = &nodes[a.node as usize];
+                if !r.is_leaf() {
+                    let lo = r.first as usize;
+                    let hi = (lo + 2 * a.count as usize - 2).min(nodes.len());
+                    // 32-byte nodes: every other one starts a cache line
+                    for n in nodes[lo.min(hi)..hi].iter().step_by(2) {
+                        prefetch_lines(n);
+                    }
+                }
+            }
+            one_leaf.push(w.push_leaf_boxes(&nodes, t));
+        }
+        debug_assert_eq!(w.leaf_boxes.len(), n_blocks as usize);
+        let kept = if keep_binary || w.nodes.len() < WIDE_PACKET_MIN_NODES {
+            nodes
+        } else {
+            drop(nodes);
+            Vec::new()
+        };
+        let mut blocks = huge_vec(n_blocks as usize);
+        for (i, (&t, &one_leaf)) in tri_slots.iter().zip(&one_leaf).enumerate() {
+            // a few slots ahead, their triangles' corner indices
+            if let Some(a) = tri_slots.get(i + 4) {
                 let (f, c) = (a.first as usize, a.count as usize);
                 for &k in order.get(f..f + c).unwrap_or_default() {
                     if let Some(t) = prims.tri_corners.get(k as usize) {
@@ -329,44 +367,22 @@ impl WideBvh {
                     }
                 }
             }
-            // two slots ahead, a merged subtree's nodes: the builder allocates a subtree
-            // depth first, so its 2·leaves − 2 descendants follow `first` contiguously
-            // (a hint only: another order costs time, not results)
-            if let Some(a) = tri_slots.get(i + 2) {
-                let r = &nodes[a.node as usize];
-                if !r.is_leaf() {
-                    let lo = r.first as usize;
-                    let hi = (lo + 2 * a.count as usize - 2).min(nodes.len());
-                    // 32-byte nodes: every other one starts a cache line
-                    for n in nodes[lo.min(hi)..hi].iter().step_by(2) {
-                        prefetch_lines(n);
-                    }
-                }
-            }
-            w.push_blocks(nodes, prims, &order, t, &mut blocks);
+            push_blocks(prims, &order, t, one_leaf, &mut blocks);
         }
         debug_assert_eq!(blocks.len(), n_blocks as usize);
-        debug_assert_eq!(w.leaf_boxes.len(), n_blocks as usize);
         drop(order);
         prims.pack_triangles(blocks);
         let walked = walked_bytes(&w.nodes, &prims.blocks);
         w.prefetches = walked > PREFETCH_FROM;
         w.stream_steps = walked >= STREAM_FROM;
         w.stream_any_hit_steps = walked >= STREAM_ANY_HIT_FROM;
-        w
+        (w, kept)
     }
 
-    /// Packs the triangles of leaf slot `t` (`order` names them in `prims`)
-    /// into blocks of 8 on `blocks`, and each lane's box of the binary leaf its triangle
-    /// came from into `leaf_boxes`.
-    fn push_blocks(
-        &mut self,
-        nodes: &[BvhNode],
-        prims: &PrimSet,
-        order: &[u32],
-        t: TriSlot,
-        blocks: &mut Vec<TriBlock>,
-    ) {
+    /// Pushes the leaf boxes of leaf slot `t`'s blocks onto `leaf_boxes`: each lane's
+    /// box of the binary leaf its triangle comes from. Returns whether the slot is one
+    /// binary leaf (every lane then has the slot's own box).
+    fn push_leaf_boxes(&mut self, nodes: &[BvhNode], t: TriSlot) -> bool {
         const EMPTY: [[f32; 8]; 6] = [
             [f32::INFINITY; 8],
             [f32::NEG_INFINITY; 8],
@@ -376,58 +392,72 @@ impl WideBvh {
             [f32::NEG_INFINITY; 8],
         ];
         const MERGED_BLOCKS: usize = MERGE_MAX.div_ceil(8) as usize;
-        let (first, count) = (t.first as usize, t.count as usize);
+        let count = t.count as usize;
         let root = &nodes[t.node as usize];
-        let mut lanes = [EMPTY; MERGED_BLOCKS];
-        if !root.is_leaf() {
-            // a merged subtree (count <= MERGE_MAX): each lane gets its leaf's box
-            let mut stack = [0u32; 2 * MERGE_MAX as usize];
-            let mut sp = 0;
-            let mut i = t.node;
-            loop {
-                let n = &nodes[i as usize];
-                if n.is_leaf() {
-                    let f = (n.first - t.first) as usize;
-                    for l in f..f + n.count() as usize {
-                        for a in 0..3 {
-                            lanes[l / 8][2 * a][l % 8] = n.lo[a];
-                            lanes[l / 8][2 * a + 1][l % 8] = n.hi[a];
-                        }
-                    }
-                    if sp == 0 {
-                        break;
-                    }
-                    sp -= 1;
-                    i = stack[sp];
-                } else {
-                    stack[sp] = n.first + 1;
-                    sp += 1;
-                    i = n.first;
-                }
-            }
-        }
-        for (k, chunk) in order[first..first + count].chunks(8).enumerate() {
-            let bounds = if root.is_leaf() {
-                // one binary leaf: every lane has its box
+        if root.is_leaf() {
+            for k in 0..count.div_ceil(8) {
+                let lanes = (count - 8 * k).min(8);
                 let mut b = EMPTY;
                 for a in 0..3 {
-                    b[2 * a][..chunk.len()].fill(root.lo[a]);
-                    b[2 * a + 1][..chunk.len()].fill(root.hi[a]);
+                    b[2 * a][..lanes].fill(root.lo[a]);
+                    b[2 * a + 1][..lanes].fill(root.hi[a]);
                 }
-                b
-            } else {
-                lanes[k]
-            };
-            let tris: [Triangle32; 8] =
-                std::array::from_fn(|l| prims.triangle(chunk[l.min(chunk.len() - 1)] as usize));
-            blocks.push(TriBlock {
-                tri: Triangle8::new(&tris[..chunk.len()]),
-                first: t.first + 8 * k as u32,
-                count: chunk.len() as u32,
-                one_leaf: root.is_leaf(),
-            });
-            self.leaf_boxes.push(bounds.map(f32x8::new));
+                self.leaf_boxes.push(b.map(f32x8::new));
+            }
+            return true;
         }
+        // a merged subtree (count <= MERGE_MAX): each lane gets its leaf's box
+        let mut lanes = [EMPTY; MERGED_BLOCKS];
+        let mut stack = [0u32; 2 * MERGE_MAX as usize];
+        let mut sp = 0;
+        let mut i = t.node;
+        loop {
+            let n = &nodes[i as usize];
+            if n.is_leaf() {
+                let f = (n.first - t.first) as usize;
+                for l in f..f + n.count() as usize {
+                    for a in 0..3 {
+                        lanes[l / 8][2 * a][l % 8] = n.lo[a];
+                        lanes[l / 8][2 * a + 1][l % 8] = n.hi[a];
+                    }
+                }
+                if sp == 0 {
+                    break;
+                }
+                sp -= 1;
+                i = stack[sp];
+            } else {
+                stack[sp] = n.first + 1;
+                sp += 1;
+                i = n.first;
+            }
+        }
+        for b in &lanes[..count.div_ceil(8)] {
+            self.leaf_boxes.push(b.map(f32x8::new));
+        }
+        false
+    }
+}
+
+/// Packs the triangles of leaf slot `t` (`order` names them in `prims`) into blocks
+/// of 8 on `blocks`; `one_leaf`: whether the slot is one binary leaf.
+fn push_blocks(
+    prims: &PrimSet,
+    order: &[u32],
+    t: TriSlot,
+    one_leaf: bool,
+    blocks: &mut Vec<TriBlock>,
+) {
+    let (first, count) = (t.first as usize, t.count as usize);
+    for (k, chunk) in order[first..first + count].chunks(8).enumerate() {
+        let tris: [Triangle32; 8] =
+            std::array::from_fn(|l| prims.triangle(chunk[l.min(chunk.len() - 1)] as usize));
+        blocks.push(TriBlock {
+            tri: Triangle8::new(&tris[..chunk.len()]),
+            first: t.first + 8 * k as u32,
+            count: chunk.len() as u32,
+            one_leaf,
+        });
     }
 }
 
@@ -631,7 +661,7 @@ mod tests {
         ] {
             let mut p = prims(seed, n, spheres);
             let (nodes, order) = build::build(&mut p);
-            let w = WideBvh::collapse(&nodes, &mut p, order);
+            let (w, nodes) = WideBvh::collapse(nodes, &mut p, order, true);
             let (got, least) = (wide_cost(&w), least_cost(&nodes));
             assert!(least.is_finite() && least > 0.0, "seed {seed}: {least}");
             assert!(
