@@ -13,13 +13,20 @@
 //! (`PrimSet::record_1`); shadow (any-hit) queries stop at the first blocker. Every
 //! query is generic over the triangle test (`TriangleKernel`).
 
-/// `$recv.$method::<T, K>(args)` for the constant `K` among `$n...` equal to `$k`:
-/// picks the const instance of a walk (a direction octant, a permutation axis) once
-/// per query. Every value of `$k` must be listed.
+/// `$recv.$method::<T, K>(args)` (or `::<T, C, K>` for a constant `C` given) for the
+/// constant `K` among `$n...` equal to `$k`: picks the const instance of a walk (a
+/// direction octant, a permutation axis) once per query. Every value of `$k` must be
+/// listed.
 macro_rules! with_const {
     ($k:expr, [$($n:literal),+], $recv:ident.$method:ident::<$t:ident> $args:tt) => {
         match $k {
             $($n => $recv.$method::<$t, $n> $args,)+
+            _ => unreachable!("no const instance for this value"),
+        }
+    };
+    ($k:expr, [$($n:literal),+], $recv:ident.$method:ident::<$t:ident, $c:literal> $args:tt) => {
+        match $k {
+            $($n => $recv.$method::<$t, $c, $n> $args,)+
             _ => unreachable!("no const instance for this value"),
         }
     };

@@ -493,7 +493,7 @@ impl Bvh {
         with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_walk_x8::<T>(r, active, &fr, hit, steps)
+            self.frustum_walk_x8::<T, false>(r, active, &fr, hit, steps)
         );
         Ok(())
     }
@@ -512,18 +512,13 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        let w = &self.wide;
-        if w.nodes.is_empty() || active.none() {
-            return;
+        if let Some(fr) = self.loose_frustum(r, active, octant) {
+            with_const!(
+                octant,
+                [0, 1, 2, 3, 4, 5, 6, 7],
+                self.frustum_walk_x8::<T, true>(r, active, &fr, hit, steps)
+            );
         }
-        let [o, d, inv] = r.rays();
-        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, w.diagonal)
-            .expect("an infinite spread takes every packet");
-        with_const!(
-            octant,
-            [0, 1, 2, 3, 4, 5, 6, 7],
-            self.hybrid_walk_x8::<T>(r, active, &fr, hit, steps)
-        );
     }
 
     /// The tree part of [`Bvh::occluded_x8`] for a packet past the frustum's limit whose
@@ -537,34 +532,31 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        let w = &self.wide;
-        if w.nodes.is_empty() || active.none() {
+        let Some(fr) = self.loose_frustum(r, active, octant) else {
             return Mask8::NONE;
-        }
-        let [o, d, inv] = r.rays();
-        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, w.diagonal)
-            .expect("an infinite spread takes every packet");
+        };
         with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.hybrid_occlusion_x8::<T>(r, active, &fr, t_max, steps)
+            self.frustum_occlusion_x8::<T, true>(r, active, &fr, t_max, steps)
         )
     }
 
-    /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant.
-    fn frustum_walk_x8<T: TriangleKernel, const OCT: u32>(
-        &self,
-        r: &RayPacket8,
-        act: Mask8,
-        fr: &Frustum,
-        hit: &mut HitPacket8,
-        steps: &mut Steps,
-    ) {
-        self.frustum_walk::<RayPacket8, T, OCT, false>(r, act, fr, hit, steps);
+    /// The hybrid walks' frustum: of the lanes `active` (sharing the direction signs
+    /// `octant`) however far apart; `None` when there is nothing to walk.
+    #[inline(always)]
+    fn loose_frustum(&self, r: &RayPacket8, active: Mask8, octant: u32) -> Option<Frustum> {
+        if self.wide.nodes.is_empty() || active.none() {
+            return None;
+        }
+        let [o, d, inv] = r.rays();
+        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, self.wide.diagonal);
+        Some(fr.expect("an infinite spread takes every packet"))
     }
 
-    /// The hybrid walk of eight lanes ([`Bvh::intersect_x8_hybrid`]), once per octant.
-    fn hybrid_walk_x8<T: TriangleKernel, const OCT: u32>(
+    /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant (and with
+    /// `PER_LANE`, the hybrid walk: [`Bvh::intersect_x8_hybrid`]).
+    fn frustum_walk_x8<T: TriangleKernel, const PER_LANE: bool, const OCT: u32>(
         &self,
         r: &RayPacket8,
         act: Mask8,
@@ -572,7 +564,7 @@ impl Bvh {
         hit: &mut HitPacket8,
         steps: &mut Steps,
     ) {
-        self.frustum_walk::<RayPacket8, T, OCT, true>(r, act, fr, hit, steps);
+        self.frustum_walk::<RayPacket8, T, OCT, PER_LANE>(r, act, fr, hit, steps);
     }
 
     /// The frustum walk of a packet (lanes `act`) of direction signs `OCT`, at any width;
@@ -806,12 +798,13 @@ impl Bvh {
         Ok(with_const!(
             octant,
             [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_occlusion_x8::<T>(r, active, &fr, t_max, steps)
+            self.frustum_occlusion_x8::<T, false>(r, active, &fr, t_max, steps)
         ))
     }
 
-    /// [`Bvh::frustum_occlusion`] of eight lanes, compiled once per octant.
-    fn frustum_occlusion_x8<T: TriangleKernel, const OCT: u32>(
+    /// [`Bvh::frustum_occlusion`] of eight lanes, compiled once per octant (and with
+    /// `PER_LANE`, the hybrid walk: [`Bvh::occluded_x8_hybrid`]).
+    fn frustum_occlusion_x8<T: TriangleKernel, const PER_LANE: bool, const OCT: u32>(
         &self,
         r: &RayPacket8,
         act: Mask8,
@@ -819,20 +812,7 @@ impl Bvh {
         t_max: f32x8,
         steps: &mut Steps,
     ) -> Mask8 {
-        self.frustum_occlusion::<RayPacket8, T, OCT, false>(r, act, fr, t_max, steps)
-    }
-
-    /// The any-hit hybrid walk of eight lanes ([`Bvh::occluded_x8_hybrid`]), once per
-    /// octant.
-    fn hybrid_occlusion_x8<T: TriangleKernel, const OCT: u32>(
-        &self,
-        r: &RayPacket8,
-        act: Mask8,
-        fr: &Frustum,
-        t_max: f32x8,
-        steps: &mut Steps,
-    ) -> Mask8 {
-        self.frustum_occlusion::<RayPacket8, T, OCT, true>(r, act, fr, t_max, steps)
+        self.frustum_occlusion::<RayPacket8, T, OCT, PER_LANE>(r, act, fr, t_max, steps)
     }
 
     /// The any-hit frustum walk of a packet (lanes `act`) of direction signs `OCT`, at
