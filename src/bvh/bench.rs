@@ -947,7 +947,9 @@ pub fn run(
             log,
             "octaray bvh: build_ms={build_ms:.1} (best of 3), {} binary nodes (kept {}), depth {}, SAH cost {:.2}",
             binary.nodes,
-            if !bvh.nodes.is_empty() {
+            if bvh.packets_walk_binary() {
+                "for the packets"
+            } else if !bvh.nodes.is_empty() {
                 "for the binary modes"
             } else {
                 "until the collapse"
