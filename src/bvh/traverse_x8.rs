@@ -127,7 +127,7 @@ fn lanes_of<const H: usize, const N: usize>(active: [Mask8; H]) -> ([(usize, usi
 /// walking the binary tree as a packet, which would fetch the nodes of eight unrelated
 /// rays. (Only trees that the frustum walk serves get here: it must not be below
 /// [`WIDE_PACKET_MIN_NODES`]. In these trees no packet walks the binary tree: those
-/// just past the frustum's limit take the hybrid walk, [`Bvh::intersect_x8_hybrid`].)
+/// just past the frustum's limit take the hybrid walk of [`Bvh::intersect_x8_wide`].)
 pub const LANES_MIN_NODES: usize = WIDE_PACKET_MIN_NODES;
 const _: () = assert!(LANES_MIN_NODES >= WIDE_PACKET_MIN_NODES);
 
@@ -138,7 +138,7 @@ impl Bvh {
     /// trees of at least [`LANES_MIN_NODES`] wide nodes, packets of mixed signs or
     /// spread past [`LANES_SPREAD`] take the 8-wide single-ray walk per lane
     /// ([`Bvh::intersect_x8_lanes`]), and those between the two limits the hybrid walk
-    /// of the 8-wide tree ([`Bvh::intersect_x8_hybrid`]); in smaller trees packets
+    /// of the 8-wide tree ([`Bvh::intersect_x8_wide`]); in smaller trees packets
     /// walk the binary tree ([`Bvh::intersect_x8_binary`]).
     pub fn intersect_x8<T: TriangleKernel>(
         &self,
@@ -202,8 +202,8 @@ impl Bvh {
                 self.intersect_beside_x8::<T>(r, active, hit, steps);
                 return;
             }
-            let oct = shared_octant(r, act);
-            let how_far = match oct {
+            // the frustum or the hybrid walk; else how far apart the lanes lie
+            let how_far = match shared_octant(r, act) {
                 Some(oct) => match self.intersect_x8_wide::<T>(r, act, oct, spread, hit, steps) {
                     Ok(()) => {
                         self.intersect_beside_x8::<T>(r, active, hit, steps);
@@ -215,12 +215,6 @@ impl Bvh {
             };
             if self.lane_walks(how_far) {
                 self.intersect_x8_lanes::<T>(r, active, hit, steps);
-                return;
-            }
-            if let Some(oct) = oct {
-                // just past the frustum's limit: the hybrid walk
-                self.intersect_x8_hybrid::<T>(r, act, oct, hit, steps);
-                self.intersect_beside_x8::<T>(r, active, hit, steps);
                 return;
             }
         }
@@ -577,7 +571,7 @@ impl Bvh {
     /// lanes' direction signs, the spread limit) is given, the wide tree as one frustum
     /// if the packet is coherent enough, else the lanes' own wide walks when they lie
     /// far apart ([`Bvh::lane_walks`]), else the hybrid walk
-    /// ([`Bvh::occluded_x8_hybrid`]); without it, the binary tree as a packet.
+    /// ([`Bvh::occluded_x8_wide`]); without it, the binary tree as a packet.
     #[inline(always)]
     fn occluded_x8_with<T: TriangleKernel>(
         &self,
@@ -597,14 +591,6 @@ impl Bvh {
                     Ok(Mask8::NONE)
                 } else {
                     self.occluded_x8_wide::<T>(r, enter, octant, spread, t_max, steps)
-                        .or_else(|how_far| {
-                            if self.lane_walks(how_far) {
-                                Err(how_far)
-                            } else {
-                                // just past the frustum's limit: the hybrid walk
-                                Ok(self.occluded_x8_hybrid::<T>(r, enter, octant, t_max, steps))
-                            }
-                        })
                 })
             }
             _ => None,

@@ -277,8 +277,8 @@ impl Bvh {
             Some(oct) => {
                 let [o, d, inv] = r.rays();
                 match Frustum::new(o, d, inv, act, oct, spread, self.wide.diagonal) {
-                    Ok(fr) => Ok((oct, fr)),
-                    Err(how_far) => Err(self.lane_walks(how_far)),
+                    (fr, None) => Ok((oct, fr)),
+                    (_, Some(how_far)) => Err(self.lane_walks(how_far)),
                 }
             }
             // halves of different signs, each of one octant (a block across the image's

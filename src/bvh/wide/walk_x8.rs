@@ -11,9 +11,9 @@
 //! leaves but one thing: the 16-lane any-hit walk pushes a leaf only when some lane's
 //! own slab test meets its box ([`entered_slots`]). Packets past the frustum's limit
 //! whose lanes still share their signs (a curved mirror's, `FRUSTUM_SPREAD` to
-//! `LANES_SPREAD`) take the hybrid walk: the same walk with a frustum of no limit, each
-//! slot it meets, interior or leaf, then tested per lane, so a subtree is entered only
-//! where some lane's own test enters it ([`Bvh::intersect_x8_hybrid`]). In a leaf, the frustum test of a
+//! `LANES_SPREAD`) take the hybrid walk: the same walk and frustum, each slot the
+//! frustum meets, interior or leaf, then tested per lane, so a subtree is entered only
+//! where some lane's own test enters it ([`Bvh::intersect_x8_wide`]). In a leaf, the frustum test of a
 //! triangle block's per-lane binary leaf boxes (`WideBvh::leaf_boxes`) picks the
 //! triangles to test (all of them in a block of one binary leaf, whose box the frustum
 //! has passed); each is tested against the whole packet with the packet kernel
@@ -49,7 +49,7 @@ use crate::simd::packet::{all_same, dot3, max_in, min_in};
 
 /// Largest spread of a packet served by the frustum walk (radians between lane
 /// directions; origins: this fraction of the tree's diagonal); wider packets take the
-/// hybrid walk ([`Bvh::intersect_x8_hybrid`]), whose per-lane slot tests cull better
+/// hybrid walk ([`Bvh::intersect_x8_wide`]), whose per-lane slot tests cull better
 /// than one wide frustum. The frustum walk and the binary packet walk (then in the
 /// hybrid's place) broke even near 0.023 (benches/README.md); this keeps a margin.
 pub const FRUSTUM_SPREAD: f32 = 0.015;
@@ -84,13 +84,13 @@ pub(crate) struct Frustum {
 impl Frustum {
     /// The frustum of the lanes `act` (non-empty, finite, all with the direction signs
     /// of `octant`: bit k set when 1/d < 0 on axis k) of a packet of any width, given
-    /// its origins `o`, unit directions `d` and 1/d `inv`.
-    /// `Err(how far)` when the lanes are too far apart for one frustum to serve them:
-    /// their directions more than `spread` radians from the first lane's (unit
-    /// directions), or their origins spread over more than `spread` times `size` (the
-    /// tree's diagonal) on an axis; `how far` is the larger of the angle's chord
-    /// (√(2 − 2 cos θ), the angle itself at these sizes) and the origins' extent over
-    /// `size`.
+    /// its origins `o`, unit directions `d` and 1/d `inv`, and `Some(how far)` when the
+    /// lanes are too far apart for the frustum walk to serve them: their directions
+    /// more than `spread` radians from the first lane's (unit directions), or their
+    /// origins spread over more than `spread` times `size` (the tree's diagonal) on an
+    /// axis; `how far` is the larger of the angle's chord (√(2 − 2 cos θ), the angle
+    /// itself at these sizes) and the origins' extent over `size`. The frustum bounds
+    /// the lanes however far apart they lie (the hybrid walk's, past the limit).
     #[inline(always)]
     pub(super) fn new<L: simd::Lanes>(
         o: [L; 3],
@@ -100,7 +100,7 @@ impl Frustum {
         octant: u32,
         spread: f32,
         size: f32,
-    ) -> Result<Frustum, f32> {
+    ) -> (Frustum, Option<f32>) {
         use simd::LaneMask as _;
         let neg = [0, 1, 2].map(|a| (octant >> a & 1) as usize);
         let first = act.bits().trailing_zeros() as usize;
@@ -140,18 +140,18 @@ impl Frustum {
         let ext = (o_hi[0] - o_lo[0])
             .max(o_hi[1] - o_lo[1])
             .max(o_hi[2] - o_lo[2]);
-        // (1 − cos θ ≈ θ²/2; an infinite spread lets every packet through)
-        if cos < 1.0 - 0.5 * spread * spread || ext > spread * size {
-            return Err((2.0 * (1.0 - cos)).max(0.0).sqrt().max(ext / size));
-        }
+        // (1 − cos θ ≈ θ²/2)
+        let past = (cos < 1.0 - 0.5 * spread * spread || ext > spread * size)
+            .then(|| (2.0 * (1.0 - cos)).max(0.0).sqrt().max(ext / size));
         let s = f32x8::splat;
-        Ok(Frustum {
+        let fr = Frustum {
             o_near: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_hi[a] } else { o_lo[a] })),
             o_far: [0, 1, 2].map(|a| s(if neg[a] == 0 { o_lo[a] } else { o_hi[a] })),
             origin: one_origin.then(|| o0.map(s)),
             r_lo: r_lo.map(s),
             r_hi: r_hi.map(s),
-        })
+        };
+        (fr, past)
     }
 
     /// The eight boxes of `bounds` (layout of `WideNode::bounds`) that some lane of
@@ -472,8 +472,13 @@ impl WidePacket for RayPacket8 {
 impl Bvh {
     /// The tree part of [`Bvh::intersect_x8`] through the 8-wide tree, for the lanes
     /// `active` (finite, see [`finite_lanes`]) when they share the direction signs
-    /// `octant` (see [`shared_octant`]); `Err(how far)` (nothing done) when they spread
-    /// wider than `spread` (see [`Frustum::new`]).
+    /// `octant` (see [`shared_octant`]): the frustum walk when they lie within `spread`
+    /// (see [`Frustum::new`]); past it, the hybrid walk, each slot the frustum meets then
+    /// tested per lane ([`entered_slots`]), so that a subtree is entered only where some
+    /// lane's own slab test enters it: the lanes of a spread packet (a curved mirror's)
+    /// share no tight frustum, but still most of their nodes. `Err(how far)` (nothing
+    /// done) when they lie so far apart that their own walks serve them
+    /// ([`Bvh::lane_walks`]).
     pub(crate) fn intersect_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -488,74 +493,26 @@ impl Bvh {
             return Ok(());
         }
         let [o, d, inv] = r.rays();
-        let fr = Frustum::new(o, d, inv, active, octant, spread, w.diagonal)?;
+        let (fr, past) = Frustum::new(o, d, inv, active, octant, spread, w.diagonal);
         // the walk specialised to the direction signs (fixed entry and exit planes)
-        with_const!(
-            octant,
-            [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_walk_x8::<T, false>(r, active, &fr, hit, steps)
-        );
-        Ok(())
-    }
-
-    /// The tree part of [`Bvh::intersect_x8`] for a packet past the frustum's limit
-    /// whose lanes (`active`, finite) still share the direction signs `octant`: the
-    /// frustum walk, each slot its (loose) frustum meets then tested per lane
-    /// ([`entered_slots`]), so that a subtree is entered only where some lane's own
-    /// slab test enters it (the hybrid packet walk). The lanes of a spread packet (a
-    /// curved mirror's) share no tight frustum, but still most of their nodes.
-    pub(crate) fn intersect_x8_hybrid<T: TriangleKernel>(
-        &self,
-        r: &RayPacket8,
-        active: Mask8,
-        octant: u32,
-        hit: &mut HitPacket8,
-        steps: &mut Steps,
-    ) {
-        if let Some(fr) = self.loose_frustum(r, active, octant) {
-            with_const!(
+        match past {
+            None => with_const!(
+                octant,
+                [0, 1, 2, 3, 4, 5, 6, 7],
+                self.frustum_walk_x8::<T, false>(r, active, &fr, hit, steps)
+            ),
+            Some(how_far) if self.lane_walks(how_far) => return Err(how_far),
+            Some(_) => with_const!(
                 octant,
                 [0, 1, 2, 3, 4, 5, 6, 7],
                 self.frustum_walk_x8::<T, true>(r, active, &fr, hit, steps)
-            );
+            ),
         }
-    }
-
-    /// The tree part of [`Bvh::occluded_x8`] for a packet past the frustum's limit whose
-    /// lanes (`active`, finite) share the direction signs `octant`: the lanes blocked
-    /// with 0 < t < t_max, by the hybrid walk of [`Bvh::intersect_x8_hybrid`].
-    pub(crate) fn occluded_x8_hybrid<T: TriangleKernel>(
-        &self,
-        r: &RayPacket8,
-        active: Mask8,
-        octant: u32,
-        t_max: f32x8,
-        steps: &mut Steps,
-    ) -> Mask8 {
-        let Some(fr) = self.loose_frustum(r, active, octant) else {
-            return Mask8::NONE;
-        };
-        with_const!(
-            octant,
-            [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_occlusion_x8::<T, true>(r, active, &fr, t_max, steps)
-        )
-    }
-
-    /// The hybrid walks' frustum: of the lanes `active` (sharing the direction signs
-    /// `octant`) however far apart; `None` when there is nothing to walk.
-    #[inline(always)]
-    fn loose_frustum(&self, r: &RayPacket8, active: Mask8, octant: u32) -> Option<Frustum> {
-        if self.wide.nodes.is_empty() || active.none() {
-            return None;
-        }
-        let [o, d, inv] = r.rays();
-        let fr = Frustum::new(o, d, inv, active, octant, f32::INFINITY, self.wide.diagonal);
-        Some(fr.expect("an infinite spread takes every packet"))
+        Ok(())
     }
 
     /// [`Bvh::frustum_walk`] of eight lanes, compiled once per octant (and with
-    /// `PER_LANE`, the hybrid walk: [`Bvh::intersect_x8_hybrid`]).
+    /// `PER_LANE`, the hybrid walk of [`Bvh::intersect_x8_wide`]).
     fn frustum_walk_x8<T: TriangleKernel, const PER_LANE: bool, const OCT: u32>(
         &self,
         r: &RayPacket8,
@@ -569,7 +526,7 @@ impl Bvh {
 
     /// The frustum walk of a packet (lanes `act`) of direction signs `OCT`, at any width;
     /// with `PER_LANE`, each slot the frustum meets also tested per lane
-    /// ([`entered_slots`], [`Bvh::intersect_x8_hybrid`]).
+    /// ([`entered_slots`], the hybrid walk of [`Bvh::intersect_x8_wide`]).
     #[inline(always)]
     pub(crate) fn frustum_walk<
         P: WidePacket,
@@ -778,8 +735,10 @@ impl Bvh {
     }
 
     /// The tree part of [`Bvh::occluded_x8`] through the 8-wide tree: the lanes of
-    /// `active` (finite, sharing the direction signs `octant`) blocked with 0 < t < t_max;
-    /// `Err(how far)` (nothing done) when they spread wider than `spread`.
+    /// `active` (finite, sharing the direction signs `octant`) blocked with 0 < t < t_max,
+    /// by the frustum walk or past `spread` the hybrid walk, as in
+    /// [`Bvh::intersect_x8_wide`]; `Err(how far)` (nothing done) when the lanes' own walks
+    /// serve them.
     pub(crate) fn occluded_x8_wide<T: TriangleKernel>(
         &self,
         r: &RayPacket8,
@@ -794,16 +753,24 @@ impl Bvh {
             return Ok(Mask8::NONE);
         }
         let [o, d, inv] = r.rays();
-        let fr = Frustum::new(o, d, inv, active, octant, spread, w.diagonal)?;
-        Ok(with_const!(
-            octant,
-            [0, 1, 2, 3, 4, 5, 6, 7],
-            self.frustum_occlusion_x8::<T, false>(r, active, &fr, t_max, steps)
-        ))
+        let (fr, past) = Frustum::new(o, d, inv, active, octant, spread, w.diagonal);
+        Ok(match past {
+            None => with_const!(
+                octant,
+                [0, 1, 2, 3, 4, 5, 6, 7],
+                self.frustum_occlusion_x8::<T, false>(r, active, &fr, t_max, steps)
+            ),
+            Some(how_far) if self.lane_walks(how_far) => return Err(how_far),
+            Some(_) => with_const!(
+                octant,
+                [0, 1, 2, 3, 4, 5, 6, 7],
+                self.frustum_occlusion_x8::<T, true>(r, active, &fr, t_max, steps)
+            ),
+        })
     }
 
     /// [`Bvh::frustum_occlusion`] of eight lanes, compiled once per octant (and with
-    /// `PER_LANE`, the hybrid walk: [`Bvh::occluded_x8_hybrid`]).
+    /// `PER_LANE`, the hybrid walk of [`Bvh::occluded_x8_wide`]).
     fn frustum_occlusion_x8<T: TriangleKernel, const PER_LANE: bool, const OCT: u32>(
         &self,
         r: &RayPacket8,
