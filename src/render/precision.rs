@@ -19,10 +19,13 @@
 //! 8e12 (its scaled distance overflows) vanish.
 
 use glam::Vec3;
+use wide::f32x8;
 
 use crate::geometry::floor::Floor32;
+use crate::geometry::triangle::TriBlock;
 use crate::geometry::{PrimKind, PrimSet, prim_code};
 use crate::math::Aabb;
+use crate::math::packet::Cmp8;
 use crate::scene::Scene;
 
 /// How far from its origin the f32 frame holds a scene: 2⁴² (4.4e12), where a product
@@ -96,9 +99,13 @@ pub fn smallest_detail(prims: &PrimSet) -> Option<Detail> {
     };
     for kind in PrimKind::BVH_KINDS {
         if kind == PrimKind::Triangle {
-            // most scenes' bulk: a loop of their own, without the kind's dispatch
-            for (i, t) in prims.each_triangle() {
-                scan.visit(kind, i, t.bounds());
+            // most scenes' bulk: loops of their own, without the kind's dispatch; in
+            // the order of `PrimSet::each_triangle` (the first of equals wins)
+            for i in 0..prims.tri_corners.len() {
+                scan.visit(kind, i, prims.triangle(i).bounds());
+            }
+            for b in &prims.blocks {
+                scan.visit_block(b);
             }
         } else {
             for i in 0..prims.len(kind) {
@@ -152,6 +159,56 @@ impl Scan<'_> {
         let rank = (-(reach - F32_RANGE).max(0.0), d2(size) / distance2);
         if self.smallest.is_none_or(|(r, _, _)| rank < r) {
             self.smallest = Some((rank, kind, i));
+        }
+    }
+
+    /// [`Scan::visit`] of the triangles of block `b`, in lane order, for those eight
+    /// at a time an f32 estimate cannot rule out: one whose squared size or distance
+    /// lies outside [2⁻⁶⁰, 2⁶⁰] (where f32 squares may lose it; so also any reaching
+    /// past the range, whose size or centre then exceeds 2⁴¹ on an axis, and any with
+    /// non-finite bounds), or one whose squared ratio is within 2⁻¹⁰ of the best so
+    /// far. The estimate's squares, sums and product err by a few units of 2⁻²⁴, so no
+    /// triangle that `visit` would rank first is skipped; the others are only read (a
+    /// million triangles: one pass over their blocks).
+    #[inline(always)]
+    fn visit_block(&mut self, b: &TriBlock) {
+        const LO: f32 = 1.0 / (1u64 << 60) as f32;
+        const HI: f32 = (1u64 << 60) as f32;
+        let v = &b.tri.v;
+        // the bounds as `Triangle32::bounds` makes them (NaN-ignoring min and max)
+        let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
+        let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
+        let dot = |p: [f32x8; 3]| p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+        let size2 = dot([0, 1, 2].map(|a| hi[a] - lo[a]));
+        let c = [0, 1, 2].map(|a| (lo[a] + hi[a]) * f32x8::splat(0.5));
+        let mut dist2 = dot(c);
+        if let Some(f) = self.floor {
+            let s = f32x8::splat;
+            let to = [
+                c[0].max(s(f.x0)).min(s(f.x1)) - c[0],
+                c[1].max(s(f.y0)).min(s(f.y1)) - c[1],
+                s(f.z) - c[2],
+            ];
+            dist2 = dist2.max(dot(to));
+        }
+        let (lo_, hi_) = (f32x8::splat(LO), f32x8::splat(HI));
+        let estimated = size2.ge(lo_) & size2.le(hi_) & dist2.ge(lo_) & dist2.le(hi_);
+        let mut open = !estimated.bits();
+        match self.smallest {
+            None => open = u32::MAX,
+            // past the range: only a triangle reaching farther can win
+            Some(((excess, _), _, _)) if excess < 0.0 => {}
+            Some(((_, ratio2), _, _)) => {
+                let bound = f32x8::splat((ratio2 * (1.0 + 1.0 / 1024.0)) as f32);
+                open |= size2.le(bound * dist2).bits();
+            }
+        }
+        open &= (1u32 << b.count) - 1;
+        while open != 0 {
+            let l = open.trailing_zeros() as usize;
+            open &= open - 1;
+            let i = b.first as usize + l;
+            self.visit(PrimKind::Triangle, i, b.tri.lane(l).bounds());
         }
     }
 }
@@ -228,6 +285,98 @@ mod tests {
             // an exact tie: a copy of the winner, later in the array, loses
             prims.add_triangle(prims.triangle(i), u32::MAX);
             assert_eq!(smallest_detail(&prims).map(|d| d.object), Some(i as u32));
+        }
+    }
+
+    /// The block pass (eight triangles at a time, an f32 estimate ruling most out)
+    /// picks the triangle the plain pass picks: every triangle's exact rank, in
+    /// `PrimSet::each_triangle`'s order. Packed scenes of triangles over many scales,
+    /// with and without a floor: distances across 10 decades, sizes across 6.5 below
+    /// them, some below the estimate's range (2⁻⁶⁰ squared), exact ties (copies), in
+    /// some rounds a near tie (below), degenerate ones at and beside the camera, or
+    /// two reaching past the f32 range by different amounts.
+    #[test]
+    fn the_block_pass_picks_what_every_triangle_ranked_picks() {
+        use crate::bvh::Bvh;
+        let plain = |prims: &PrimSet| {
+            let mut scan = Scan {
+                floor: prims.floor.as_ref(),
+                smallest: None,
+            };
+            for (i, t) in prims.each_triangle() {
+                scan.visit(PrimKind::Triangle, i, t.bounds());
+            }
+            scan.smallest.map(|(rank, _, i)| (rank, i))
+        };
+        let mut rng = Xorshift(0x2545_f491_4f6c_dd1d);
+        let mut unit = move || rng.f64();
+        for round in 0..48 {
+            let n = 50 + round * 37;
+            let mut tris: Vec<Triangle32> = (0..n)
+                .map(|_| {
+                    let distance = 10f64.powf(unit() * 10.0 - 4.0);
+                    let decades = if round % 3 == 0 { 2.5 } else { 6.5 };
+                    let size = 10f64.powf((unit() - 1.0) * decades) * distance;
+                    let at = DVec3::new(unit() - 0.5, unit() - 0.5, unit()).normalize() * distance;
+                    let v = [0.0, 1.0, 2.0]
+                        .map(|k: f64| at + DVec3::new(unit(), unit() + k, unit() * k) * size);
+                    Triangle32::new(&v, DVec3::ZERO)
+                })
+                .collect();
+            if round % 3 == 0 {
+                // a near tie, smaller than the rest (ratios above 10^-2.5): two triangles
+                // 1000 from the camera, on opposite sides (in different blocks, the
+                // smaller in the later one: leaves go from low x to high), 0.25 across
+                // and 2⁻¹² less (corners on f32's grid there, 2⁻¹⁴): squared ratios 2⁻¹¹
+                // apart
+                let g = 1.0 / 16384.0;
+                let pair =
+                    [(-1000.0, -4096.0 * g), (1000.0, 4095.0 * g)].map(|(x, e)| Triangle32 {
+                        v: [
+                            Vec3::new(x, 0.0, 1000.0),
+                            Vec3::new(x + e, 0.0, 1000.0),
+                            Vec3::new(x, e, 1000.0),
+                        ],
+                    });
+                for t in pair {
+                    let at = (unit() * tris.len() as f64) as usize;
+                    tris.insert(at, t);
+                }
+            }
+            let n = tris.len();
+            let pick = |u: f64| (u * n as f64) as usize % n;
+            // ties: copies of some triangles, later in the array
+            for _ in 0..3 {
+                let t = tris[pick(unit())];
+                tris.push(t);
+            }
+            if round % 6 == 2 {
+                // degenerate: a point, at the camera and beside it
+                tris.insert(pick(unit()), Triangle32 { v: [Vec3::ZERO; 3] });
+                tris.insert(pick(unit()), Triangle32 { v: [Vec3::ONE; 3] });
+            }
+            if round % 4 == 3 {
+                let far = f64::from(F32_RANGE);
+                for k in 1..3 {
+                    let x = far * (1.0 + k as f64 * unit());
+                    let v = [0.0, 1.0, 2.0].map(|j| DVec3::new(x, j * 1e6, x));
+                    tris.insert(pick(unit()), Triangle32::new(&v, DVec3::ZERO));
+                }
+            }
+            let mut prims = PrimSet::from_triangles(tris);
+            prims.triangle_obj = (0..prims.tri_corners.len() as u32).collect();
+            if round % 2 == 1 {
+                prims.floor = Some(Floor32::new(DVec3::new(0.0, 0.0, 10f64.powf(unit() * 6.0))));
+            }
+            let bvh = Bvh::build(prims);
+            assert!(!bvh.prims.blocks.is_empty(), "round {round}: packed");
+            let (rank, i) = plain(&bvh.prims).expect("triangles");
+            let d = smallest_detail(&bvh.prims).expect("triangles");
+            assert_eq!(
+                d.object, bvh.prims.triangle_obj[i],
+                "round {round}, rank {rank:?}"
+            );
+            assert_eq!(d.beyond_range(), round % 4 == 3, "round {round}");
         }
     }
 }
