@@ -221,6 +221,15 @@ mod tests {
     use crate::geometry::triangle::Triangle32;
     use crate::math::test_rng::Xorshift;
 
+    /// A triangle about `size` across, `distance` from the camera in a random direction
+    /// in front of it.
+    fn triangle_at(unit: &mut impl FnMut() -> f64, distance: f64, size: f64) -> Triangle32 {
+        let at = DVec3::new(unit() - 0.5, unit() - 0.5, unit()).normalize() * distance;
+        let v =
+            [0.0, 1.0, 2.0].map(|k: f64| at + DVec3::new(unit(), unit() + k, unit() * k) * size);
+        Triangle32::new(&v, DVec3::ZERO)
+    }
+
     /// The ranking in squares picks the primitive that sizes and distances in f32
     /// (square roots and a division per primitive) pick, with the same figures: over
     /// triangles whose ratios of size to distance span a decade at distances over six,
@@ -237,10 +246,7 @@ mod tests {
                     // ratios over one decade, distances over six: the ratio decides
                     let distance = 10f64.powf(unit() * 6.0);
                     let size = 10f64.powf(unit() - 4.0) * distance;
-                    let at = DVec3::new(unit() - 0.5, unit() - 0.5, unit()).normalize() * distance;
-                    let v = [0.0, 1.0, 2.0]
-                        .map(|k: f64| at + DVec3::new(unit(), unit() + k, unit() * k) * size);
-                    Triangle32::new(&v, DVec3::ZERO)
+                    triangle_at(&mut unit, distance, size)
                 })
                 .collect();
             if round % 4 == 3 {
@@ -317,10 +323,7 @@ mod tests {
                     let distance = 10f64.powf(unit() * 10.0 - 4.0);
                     let decades = if round % 3 == 0 { 2.5 } else { 6.5 };
                     let size = 10f64.powf((unit() - 1.0) * decades) * distance;
-                    let at = DVec3::new(unit() - 0.5, unit() - 0.5, unit()).normalize() * distance;
-                    let v = [0.0, 1.0, 2.0]
-                        .map(|k: f64| at + DVec3::new(unit(), unit() + k, unit() * k) * size);
-                    Triangle32::new(&v, DVec3::ZERO)
+                    triangle_at(&mut unit, distance, size)
                 })
                 .collect();
             if round % 3 == 0 {
