@@ -27,6 +27,7 @@ use crate::geometry::{PrimKind, PrimSet, prim_code};
 use crate::math::Aabb;
 use crate::math::packet::Cmp8;
 use crate::scene::Scene;
+use crate::simd::packet::dot3;
 
 /// How far from its origin the f32 frame holds a scene: 2⁴² (4.4e12), where a product
 /// of three coordinates (2¹²⁶) still fits in f32 (below 2¹²⁸), as the watertight
@@ -179,7 +180,7 @@ impl Scan<'_> {
         // never NaN)
         let lo = [0, 1, 2].map(|a| v[0][a].min(v[1][a]).min(v[2][a]));
         let hi = [0, 1, 2].map(|a| v[0][a].max(v[1][a]).max(v[2][a]));
-        let dot = |p: [f32x8; 3]| p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+        let dot = |p: [f32x8; 3]| dot3(p, p);
         let size2 = dot([0, 1, 2].map(|a| hi[a] - lo[a]));
         let c = [0, 1, 2].map(|a| (lo[a] + hi[a]) * f32x8::splat(0.5));
         let mut dist2 = dot(c);
