@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The mesh figures against Embree in interleaved rounds: per round and mesh, the Embree harness
 # (benches/embree, modes 1/8/16 and the stream 1M, closest hit and shadow rays) then octaray
-# bench-trace (modes 1/8/16, the binary 1b/8b and the stream 1s) on the
+# bench-trace (modes 1/8/16/64, the binary 1b/8b and the stream 1s) on the
 # same work, 1 thread; prints every line, then the median Mrays/s of each cell over the rounds,
 # octaray's best mode over Embree's best mode, and the median and range over the rounds of
 # each round's best over best. Usage, from the repository root:
