@@ -600,12 +600,23 @@ mod x16 {
             let n = ts.len();
             let len = |q: usize| n.saturating_sub(16 * q).min(16);
             let act = [0, 1, 2, 3].map(|q| M16::from_bits((1u32 << len(q)) - 1));
-            // (a packet past the end repeats the first one's rays, none of them active)
-            let p = [0, 1, 2, 3].map(|q| match len(q) {
-                0 => packet16(rays, b, len(0), act[q]),
-                n => packet16(rays, b + 16 * q, n, act[q]),
-            });
-            let mut h = [(); 4].map(|_| no_hit());
+            // (a packet past the end repeats the first one's rays, none of them active;
+            // written out, as no closure touches a 16-lane value: `simd::packet`)
+            let from = |q: usize| {
+                if len(q) == 0 {
+                    (b, len(0))
+                } else {
+                    (b + 16 * q, len(q))
+                }
+            };
+            let (f, m) = ([from(0), from(1), from(2), from(3)], act);
+            let p = [
+                packet16(rays, f[0].0, f[0].1, m[0]),
+                packet16(rays, f[1].0, f[1].1, m[1]),
+                packet16(rays, f[2].0, f[2].1, m[2]),
+                packet16(rays, f[3].0, f[3].1, m[3]),
+            ];
+            let mut h = [no_hit(), no_hit(), no_hit(), no_hit()];
             bvh.intersect_x64::<Watertight>(&p, act, &mut h, steps);
             // (packets past the end have no rays: `zip` stops at the last one)
             for (h, ts) in h.iter().zip(ts.chunks_mut(16)) {

@@ -200,7 +200,14 @@ impl Bvh {
         hit: &mut [HitPacket16; 4],
         steps: &mut Steps,
     ) {
-        let routes = [0, 1, 2, 3].map(|q| self.frustum_x16(&r[q], active[q]));
+        // (written out: a closure here would be compiled apart from the AVX-512 of its
+        // caller whenever the inliner declines it, its 16-lane operations then calls)
+        let routes = [
+            self.frustum_x16(&r[0], active[0]),
+            self.frustum_x16(&r[1], active[1]),
+            self.frustum_x16(&r[2], active[2]),
+            self.frustum_x16(&r[3], active[3]),
+        ];
         let oct = match routes[0].2 {
             Ok((oct, _)) => oct,
             Err(_) => u32::MAX,

@@ -612,7 +612,11 @@ impl Bvh {
         use simd::LaneMask as _;
         let w = &self.wide;
         // each packet's largest nearest hit, and theirs
-        let mut t_k: [f32; N] = std::array::from_fn(|k| max_in(P::hit_t(&hit[k]), act[k]));
+        // (a loop, not `from_fn`: no closure touches a 16-lane value, `simd::packet`)
+        let mut t_k = [f32::NEG_INFINITY; N];
+        for (t, (h, &a)) in t_k.iter_mut().zip(hit.iter().zip(&act)) {
+            *t = max_in(P::hit_t(h), a);
+        }
         let largest = |t: &[f32; N]| t.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
         let mut t_hi = largest(&t_k);
         let mut stack = Stack::<Pending, WIDE_STACK>::new();
