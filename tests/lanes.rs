@@ -10,7 +10,8 @@ mod common;
 use common::{Rng, generated_scene};
 use glam::{DVec3, Vec3};
 use octaray::bvh::bench::{
-    Mode, RaySet, incoherent_rays, primary_rays, shadow_rays, torus, trace, trace_occluded,
+    Mode, RaySet, TILE_QUADRANTS, incoherent_rays, primary_rays, shadow_rays, torus, trace,
+    trace_occluded,
 };
 use octaray::bvh::{Bvh, Steps};
 use octaray::geometry::PrimSet;
@@ -104,10 +105,11 @@ fn sixteen_lanes_give_every_ray_what_eight_give_it_on_a_mesh() {
     assert_eq!(s16, s64, "incoherent: 16 lanes vs 64 at a time");
 }
 
-/// The 64-ray walk on packets that do not share one origin: each 16-ray packet of the
-/// camera rays moved by its own offset (the union's origin bounds then differ from
-/// every packet's), then every ray by its own; and a ray count that leaves a last
-/// group of 40 rays (a packet of 8 and two of none).
+/// The 64-ray walk on packets that do not share one origin: each of its 16-ray packets
+/// (a quadrant of an 8 × 8 tile of the camera rays, `TILE_QUADRANTS`) moved by its own
+/// offset (the union's origin bounds then differ from every packet's), then every ray
+/// by its own; and a ray count that leaves a last group of 40 rays (a packet of 8 and
+/// two of none).
 #[test]
 fn sixty_four_at_a_time_give_every_ray_what_eight_give_it_from_spread_origins() {
     let Some(m16) = mode16() else {
@@ -117,12 +119,14 @@ fn sixty_four_at_a_time_give_every_ray_what_eight_give_it_from_spread_origins() 
     let camera = primary_rays(512, 512);
     let mut rng = Rng(17);
     let mut by_packet = camera.clone();
-    for packet in by_packet.origin.chunks_mut(16) {
-        // 0.03 to 0.06 either way on each axis
-        let mut off = || rng.range(0.03, 0.06) * if rng.f64() < 0.5 { -1.0 } else { 1.0 };
-        let shift = DVec3::new(off(), off(), off()).as_vec3();
-        for o in packet {
-            *o += shift;
+    for tile in by_packet.origin.chunks_mut(64) {
+        for (a, c) in TILE_QUADRANTS {
+            // 0.03 to 0.06 either way on each axis
+            let mut off = || rng.range(0.03, 0.06) * if rng.f64() < 0.5 { -1.0 } else { 1.0 };
+            let shift = DVec3::new(off(), off(), off()).as_vec3();
+            for i in (a..a + 8).chain(c..c + 8) {
+                tile[i] += shift;
+            }
         }
     }
     let (_, s16, s64) = same_per_ray("origins by packet", &bvh, &by_packet, m16);
