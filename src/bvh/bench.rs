@@ -591,8 +591,8 @@ mod x16 {
         }
     }
 
-    /// The packet of the 4 × 2 packets at rays `a..a + 8` (lanes 0–7) and `c..c + 8`
-    /// (lanes 8–15), every lane active.
+    /// The 16-lane packet of rays `a..a + 8` (lanes 0–7) and `c..c + 8` (lanes 8–15),
+    /// every lane active.
     #[inline(always)]
     fn packet16_of(rays: &RaySet, a: usize, c: usize) -> RayPacket16 {
         let all = crate::math::packet::Mask8::ALL;
@@ -647,12 +647,12 @@ mod x16 {
                     (b + 16 * q, len(q))
                 }
             };
-            let (f, m) = ([from(0), from(1), from(2), from(3)], act);
+            let f = [from(0), from(1), from(2), from(3)];
             let p = [
-                packet16(rays, f[0].0, f[0].1, m[0]),
-                packet16(rays, f[1].0, f[1].1, m[1]),
-                packet16(rays, f[2].0, f[2].1, m[2]),
-                packet16(rays, f[3].0, f[3].1, m[3]),
+                packet16(rays, f[0].0, f[0].1, act[0]),
+                packet16(rays, f[1].0, f[1].1, act[1]),
+                packet16(rays, f[2].0, f[2].1, act[2]),
+                packet16(rays, f[3].0, f[3].1, act[3]),
             ];
             bvh.intersect_x64::<Watertight>(&p, act, &mut h, steps);
             // (packets past the end have no rays: `zip` stops at the last one)
