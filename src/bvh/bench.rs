@@ -556,10 +556,17 @@ mod x16 {
     /// The packet of rays `b..b + n` (n <= 16; missing lanes inactive) and its lanes.
     #[inline(always)]
     fn packet16(rays: &RaySet, b: usize, n: usize, active: M16) -> RayPacket16 {
+        packet16_at(rays, [b, b + 8], n, active)
+    }
+
+    /// The packet of `n` rays (n <= 16; missing lanes inactive): lanes 0–7 from rays
+    /// `at[0]..`, lanes 8–15 from rays `at[1]..`.
+    #[inline(always)]
+    fn packet16_at(rays: &RaySet, at: [usize; 2], n: usize, active: M16) -> RayPacket16 {
         let n0 = n.min(8);
-        let h0 = packet(&rays.origin, &rays.dir, b, n0, half_mask(active, 0));
+        let h0 = packet(&rays.origin, &rays.dir, at[0], n0, half_mask(active, 0));
         let h1 = if n > 8 {
-            packet(&rays.origin, &rays.dir, b + 8, n - 8, half_mask(active, 1))
+            packet(&rays.origin, &rays.dir, at[1], n - 8, half_mask(active, 1))
         } else {
             h0
         };
@@ -591,16 +598,6 @@ mod x16 {
         }
     }
 
-    /// The 16-lane packet of rays `a..a + 8` (lanes 0–7) and `c..c + 8` (lanes 8–15),
-    /// every lane active.
-    #[inline(always)]
-    fn packet16_of(rays: &RaySet, a: usize, c: usize) -> RayPacket16 {
-        let all = crate::math::packet::Mask8::ALL;
-        let h0 = packet(&rays.origin, &rays.dir, a, 8, all);
-        let h1 = packet(&rays.origin, &rays.dir, c, 8, all);
-        RayPacket16::new([h0, h1])
-    }
-
     /// Closest hits of 64 consecutive rays at a time, four 16-lane packets walking
     /// the tree once (`Bvh::intersect_x64`): a whole 8 × 8 tile as its four 4 × 4
     /// quadrants (a square packet's frustum meets fewer triangles than a strip's, 1.0
@@ -620,13 +617,14 @@ mod x16 {
             if ts.len() == 64 {
                 // (written out, as no closure touches a 16-lane value: `simd::packet`)
                 let q = super::TILE_QUADRANTS;
+                let all = M16::ALL;
                 let p = [
-                    packet16_of(rays, b + q[0].0, b + q[0].1),
-                    packet16_of(rays, b + q[1].0, b + q[1].1),
-                    packet16_of(rays, b + q[2].0, b + q[2].1),
-                    packet16_of(rays, b + q[3].0, b + q[3].1),
+                    packet16_at(rays, [b + q[0].0, b + q[0].1], 16, all),
+                    packet16_at(rays, [b + q[1].0, b + q[1].1], 16, all),
+                    packet16_at(rays, [b + q[2].0, b + q[2].1], 16, all),
+                    packet16_at(rays, [b + q[3].0, b + q[3].1], 16, all),
                 ];
-                bvh.intersect_x64::<Watertight>(&p, [M16::ALL; 4], &mut h, steps);
+                bvh.intersect_x64::<Watertight>(&p, [all; 4], &mut h, steps);
                 for (h, &(a, c)) in h.iter().zip(&q) {
                     let t = F16::select(h.prim.non_negative(), h.t, F16::splat(-1.0)).to_array();
                     ts[a..a + 8].copy_from_slice(&t[..8]);
